@@ -1,0 +1,47 @@
+"""Fixtures for tests against the `bpy` module (PyPI wheel, Blender 4.5 or 5.x).
+
+The extension is loaded the way Blender loads an extension: as a package whose
+directory is the repository root, so its relative imports and `__package__` work.
+"""
+
+import importlib.util
+import pathlib
+import sys
+
+import pytest
+
+bpy = pytest.importorskip("bpy", reason="the bpy module is not installed in this environment")
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+PACKAGE = "vr_addon_under_test"
+
+
+def load_addon():
+    """Import the repository as an extension package (once per process)."""
+    if PACKAGE in sys.modules:
+        return sys.modules[PACKAGE]
+    spec = importlib.util.spec_from_file_location(
+        PACKAGE, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)]
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[PACKAGE] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def clean_file():
+    """An empty factory-startup file (keeps extensions enabled, unlike read_factory_settings)."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    yield bpy.context
+
+
+@pytest.fixture
+def addon(clean_file):
+    """The extension registered on an empty file; unregistered afterwards."""
+    module = load_addon()
+    module.register()
+    try:
+        yield module
+    finally:
+        module.unregister()
