@@ -1,0 +1,137 @@
+"""Command line — a pipeline contract, keep it stable:
+
+    python -m virtual_reflections envmap PLATE -o OUT --bbox X0 Y0 X1 Y1 [--layout latlong|cube]
+        [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG] [--float]
+    python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
+    python -m virtual_reflections bench [--repeat N]
+
+--bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
+plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
+sRGB-encoded .png/.jpg/.tif). Bad input prints one line on stderr and exits with code 2,
+without a traceback and without leaving a partial output file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from .envmap import DEFAULT_SIZE
+from .imagefiles import ImageError, check_writable, read_plate, write_map
+from .params import Params
+
+EXIT_BAD_INPUT = 2
+
+
+class UsageError(Exception):
+    """Bad command-line input; the message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit code 2 (argparse prints the usage too)
+        raise UsageError(message)
+
+
+def _add_map_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("plate", metavar="PLATE", help="background plate (EXR, HDR, PNG, JPEG, TIFF...)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file")
+    p.add_argument("--bbox", nargs=4, type=float, required=True, metavar=("X0", "Y0", "X1", "Y1"),
+                   help="object bounds in plate pixels (origin top-left, y down, X1/Y1 exclusive)")
+    p.add_argument("--layout", choices=("latlong", "cube"), default="latlong")
+    p.add_argument("--width", type=int, default=None,
+                   help="lat-long width (height = width/2) or cube face size "
+                        f"(default {DEFAULT_SIZE['latlong']} lat-long, {DEFAULT_SIZE['cube']} cube)")
+    p.add_argument("--triangles", type=int, default=0,
+                   help="n front-face triangles, a multiple of 4 (4..1024); 0 = continuous limit")
+    p.add_argument("--enlarge", type=float, default=Params.enlarge,
+                   help="enlargement of the bounds, fraction of the image size (default 0.075)")
+    p.add_argument("--border", type=float, default=Params.border,
+                   help="minimum distance of X from the border, fraction (default 0.15)")
+    p.add_argument("--hfov", type=float, default=None, help="horizontal field of view (degrees)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="python -m virtual_reflections",
+                     description="Environment maps from a plate, after Ropinski et al. 2004.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = sub.add_parser("envmap", help="build the environment map of an object on a plate")
+    _add_map_options(p)
+    p.add_argument("--float", action="store_true", help="write EXR as 32-bit float (default half)")
+    p = sub.add_parser("segment", help="draw the paper's segmentation over the plate")
+    _add_map_options(p)
+    p = sub.add_parser("bench", help="time table building and applying against py360convert")
+    p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
+    return parser
+
+
+def _params(args) -> Params:
+    x0, y0, x1, y1 = args.bbox
+    if not (x0 < x1 and y0 < y1):
+        raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
+    try:
+        return Params(enlarge=args.enlarge, border=args.border, triangles=args.triangles,
+                      hfov=args.hfov)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+
+
+def run_envmap(args) -> None:
+    from .envmap import apply_table
+    from .table import lookup_table
+
+    params = _params(args)
+    check_writable(args.output)
+    started = time.perf_counter()
+    plate = read_plate(args.plate)
+    h, w = plate.pixels.shape[:2]
+    size = args.width or DEFAULT_SIZE[args.layout]
+    try:
+        table = lookup_table(w, h, tuple(args.bbox), params, args.layout, size)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+    env = apply_table(table, plate.pixels)
+    write_map(args.output, env, layout=args.layout, half=not args.float)
+    seg = table.segmentation
+    notes = []
+    if plate.nonfinite:
+        notes.append(f"replaced {plate.nonfinite} NaN/Inf values")
+    if seg.shrunk:
+        notes.append("region X is smaller than the object's bounds (near the border)")
+    print(f"wrote {args.output}: {args.layout} {env.shape[1]}x{env.shape[0]} from a {w}x{h} "
+          f"{plate.encoding} plate in {1000 * (time.perf_counter() - started):.0f} ms"
+          + "".join(f"; {n}" for n in notes))
+
+
+def run_segment(args) -> None:
+    from .overlay import draw_segmentation
+    from .segmentation import segment
+
+    params = _params(args)
+    check_writable(args.output)
+    plate = read_plate(args.plate)
+    h, w = plate.pixels.shape[:2]
+    seg = segment(w, h, args.bbox, params)
+    write_map(args.output, draw_segmentation(plate.pixels, seg, params.triangles))
+    print(f"wrote {args.output}: segmentation of a {w}x{h} plate"
+          + (" (X shrunk to keep the border distance)" if seg.shrunk else ""))
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "envmap":
+            run_envmap(args)
+        elif args.command == "segment":
+            run_segment(args)
+        else:
+            from .bench import run_bench
+
+            run_bench(repeat=args.repeat)
+    except (UsageError, ImageError) as exc:
+        print(f"virtual_reflections: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("virtual_reflections: interrupted", file=sys.stderr)
+        return 130
+    return 0

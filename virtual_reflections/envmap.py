@@ -1,0 +1,55 @@
+"""Plate in, environment map out: the engine's front door.
+
+    env = environment_map(plate, bbox)                   # (512, 1024, 3) float32 lat-long
+    env = environment_map(plate, bbox, layout="cube", size=256)   # (1536, 256, 3)
+
+`plate` is scene-linear Rec.709, (H, W) or (H, W, C); `bbox` = (x0, y0, x1, y1) in plate
+pixels (origin top-left, y down, x1/y1 exclusive). Frames and layouts: see layouts.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .colour import clean_plate
+from .mipmap import build_pyramid
+from .params import Params
+from .table import LookupTable, lookup_table
+
+DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
+
+
+def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
+    """One filtered gather: (H, W, 3) float32 clean linear plate -> (h, w, 3) float32 map.
+
+    The plate must have the size the table was built for.
+    """
+    seg = table.segmentation
+    if plate.shape[:2] != (seg.height, seg.width):
+        raise ValueError(
+            f"plate is {plate.shape[1]}x{plate.shape[0]}, table was built for "
+            f"{seg.width}x{seg.height}"
+        )
+    pyramid = build_pyramid(plate, table.levels)
+    taps = np.take(pyramid, table.index, axis=0, mode="clip")  # (T, 8, 3)
+    out = np.einsum("tkc,tk->tc", taps, table.weight)
+    return out.reshape(table.shape + (3,))
+
+
+def environment_map(
+    plate: np.ndarray,
+    bbox,
+    params: Params = Params(),
+    layout: str = "latlong",
+    size: int | None = None,
+) -> np.ndarray:
+    """The paper's environment map of `plate` around the object at `bbox`.
+
+    NaN/Inf pixels are replaced (see colour.clean_plate); the table is cached, so calling
+    again with the same plate size, bounds, params and layout costs only the gather.
+    """
+    clean = clean_plate(plate).pixels
+    h, w = clean.shape[:2]
+    size = DEFAULT_SIZE[layout] if size is None and layout in DEFAULT_SIZE else size
+    table = lookup_table(w, h, tuple(float(v) for v in bbox), params, layout, size)
+    return apply_table(table, clean)

@@ -1,0 +1,91 @@
+"""Map layouts and their texel directions, in the camera frame (see projection.py).
+
+Lat-long (OpenEXR envmap LATLONG, ImfEnvmap's LatLongMap), W x H with W = 2H, top row first:
+    latitude  = -pi  * ((y + 0.5) / H - 0.5)      (+pi/2 at the top)
+    longitude = -2pi * ((x + 0.5) / W - 0.5)      (+pi at the left edge)
+    direction = (sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))
+  So the centre column looks along +Z (the plate's centre), the left half holds +X (the
+  plate's left): the plate appears upright and unmirrored around the map's centre, and the
+  left/right edges look back toward the camera. (ImfEnvmap scales by W-1 and H-1 so its
+  first and last columns sit on the seam; we use pixel centres, as CONVENTIONS.md says.)
+
+Cube (OpenEXR envmap CUBE, ImfEnvmap's CubeMap), a vertical strip of six S x S faces, top to
+bottom +X, -X, +Y, -Y, +Z, -Z, each oriented as CubeMap::pixelPosition defines. Within a face,
+column c and row r (top row first) give a = 2c/(S-1) - 1, b = 2r/(S-1) - 1 and
+    +X: ( 1, -b,  a)    -X: (-1, -b, -a)    +Y: ( a,  1, -b)
+    -Y: ( a, -1,  b)    +Z: (-a, -b,  1)    -Z: ( a, -b, -1)
+  Edge texels sit exactly on the cube's edges (ImfEnvmap's convention), so neighbouring
+  faces repeat the same directions there. The +Z face is the paper's back face and shows
+  the plate's region X upright and unmirrored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LAYOUTS = ("latlong", "cube")
+CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+
+
+def map_shape(layout: str, size: int) -> tuple[int, int]:
+    """(height, width) of a map: `size` is the lat-long width or the cube face size."""
+    if layout == "latlong":
+        if size < 2 or size % 2:
+            raise ValueError(f"lat-long width must be an even number >= 2, got {size}")
+        return size // 2, size
+    if layout == "cube":
+        if size < 2:
+            raise ValueError(f"cube face size must be at least 2, got {size}")
+        return 6 * size, size
+    raise ValueError(f"unknown layout {layout!r}; use one of {', '.join(LAYOUTS)}")
+
+
+def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int) -> np.ndarray:
+    """Directions at continuous lat-long pixel positions (fx, fy); pixel centres at +0.5.
+
+    fx, fy broadcast together; returns (..., 3) float64 unit vectors.
+    """
+    height = width // 2
+    lat = -np.pi * (np.asarray(fy, dtype=np.float64) / height - 0.5)
+    lon = -2.0 * np.pi * (np.asarray(fx, dtype=np.float64) / width - 0.5)
+    lat, lon = np.broadcast_arrays(lat, lon)
+    c = np.cos(lat)
+    return np.stack((np.sin(lon) * c, np.sin(lat), np.cos(lon) * c), axis=-1)
+
+
+def cube_directions(face: np.ndarray, fc: np.ndarray, fr: np.ndarray, size: int) -> np.ndarray:
+    """Directions at continuous in-face positions (fc, fr) of cube faces `face` (0..5).
+
+    Integer positions are texel centres and S-1 spans the face (ImfEnvmap). Arguments
+    broadcast together; returns (..., 3) float64 on the unit cube (not normalised).
+    """
+    face, fc, fr = np.broadcast_arrays(face, np.asarray(fc, np.float64), fr)
+    scale = 2.0 / (size - 1)
+    a, b = fc * scale - 1.0, np.asarray(fr, np.float64) * scale - 1.0
+    one = np.ones_like(a)
+    out = np.empty(a.shape + (3,))
+    for f, axes in enumerate(
+        [(one, -b, a), (-one, -b, -a), (a, one, -b), (a, -one, b), (-a, -b, one), (a, -b, -one)]
+    ):
+        m = face == f
+        out[m] = np.stack([v[m] for v in axes], -1)
+    return out
+
+
+def texel_directions(layout: str, size: int, offset=(0.0, 0.0)) -> np.ndarray:
+    """Directions through every texel of a map, shifted by `offset` = (dx, dy) texels.
+
+    Returns (H, W, 3) float64 for the map shape `map_shape(layout, size)`. Lat-long texel
+    centres are at +0.5; cube texel centres at integer positions (ImfEnvmap).
+    """
+    height, width = map_shape(layout, size)
+    dx, dy = offset
+    if layout == "latlong":
+        fx = np.arange(width, dtype=np.float64)[None, :] + 0.5 + dx
+        fy = np.arange(height, dtype=np.float64)[:, None] + 0.5 + dy
+        return latlong_directions(fx, fy, width)
+    rows = np.arange(height)
+    face, row = (rows // size)[:, None], (rows % size)[:, None] + dy
+    fc = np.arange(width, dtype=np.float64)[None, :] + dx
+    # The shifted position stays in its own face: footprints never straddle faces.
+    return cube_directions(face, fc, row, size)

@@ -1,0 +1,53 @@
+"""A box-filtered mip pyramid of a plate, stored as one flat array for single-gather lookups.
+
+Level 0 is the plate; level l+1 averages 2 x 2 pixels of level l (an odd last row/column is
+repeated). Level l's pixel (i, j) covers [j 2^l, (j+1) 2^l] x [i 2^l, (i+1) 2^l] in level-0
+plate coordinates. All levels are rows of one (P, 3) float32 array so a lookup table can
+address any texel of any level with a single index.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def level_shapes(height: int, width: int, levels: int | None = None) -> list[tuple[int, int]]:
+    """(h, w) of every level, down to 1 x 1 or `levels` levels."""
+    shapes = [(height, width)]
+    while (shapes[-1] != (1, 1)) and (levels is None or len(shapes) < levels):
+        h, w = shapes[-1]
+        shapes.append(((h + 1) // 2, (w + 1) // 2))
+    return shapes
+
+
+def level_offsets(shapes) -> np.ndarray:
+    """Row offset of each level in the flat array; the last entry is the total."""
+    return np.concatenate(([0], np.cumsum([h * w for h, w in shapes]))).astype(np.int64)
+
+
+def _halve(src: np.ndarray, dst: np.ndarray) -> None:
+    """Average 2 x 2 blocks of src (h, w, 3) into dst ((h+1)//2, (w+1)//2, 3)."""
+    h, w, _ = src.shape
+    he, we = h - h % 2, w - w % 2
+    rows = src[0:he:2] + src[1:he:2]  # (h//2, w, 3)
+    if h % 2:
+        rows = np.concatenate((rows, 2.0 * src[-1:]), axis=0)
+    out = rows[:, 0:we:2]
+    out += rows[:, 1:we:2]
+    if w % 2:
+        out = np.concatenate((out, 2.0 * rows[:, -1:]), axis=1)
+    np.multiply(out, 0.25, out=dst)
+
+
+def build_pyramid(plate: np.ndarray, levels: int | None = None) -> np.ndarray:
+    """The flat pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32."""
+    plate = np.asarray(plate, dtype=np.float32)
+    h, w = plate.shape[:2]
+    shapes = level_shapes(h, w, levels)
+    offsets = level_offsets(shapes)
+    flat = np.empty((int(offsets[-1]), 3), dtype=np.float32)
+    views = [flat[offsets[i] : offsets[i + 1]].reshape(sh + (3,)) for i, sh in enumerate(shapes)]
+    views[0][...] = plate
+    for src, dst in zip(views, views[1:]):
+        _halve(src, dst)
+    return flat

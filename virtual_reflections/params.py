@@ -1,0 +1,46 @@
+"""Parameters of the paper's segmentation, validated once at the edge.
+
+Defaults come from the paper (§3.2): enlarge the object's bounds by 5–10 % of the image
+size (we take 7.5 %) and keep region X at least 10–20 % (we take 15 %) away from the border.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+MAX_TRIANGLES = 1024
+
+
+@dataclass(frozen=True)
+class Params:
+    """How the plate is cut into the paper's regions and how the front face is built.
+
+    enlarge:   growth of the object's bounding box, as a fraction of the image width/height.
+    border:    minimum distance of region X from every image edge, same units (< 0.5).
+    triangles: n triangles for the front face (a multiple of 4, 4..1024), or 0 for the
+               continuous limit n -> infinity.
+    hfov:      horizontal field of view of the plate's camera in degrees, or None. The
+               paper's method ignores it; it is carried for the accuracy work.
+    """
+
+    enlarge: float = 0.075
+    border: float = 0.15
+    triangles: int = 0
+    hfov: float | None = None
+
+    def __post_init__(self):
+        if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
+            raise ValueError(f"enlarge must be between 0 and 1, got {self.enlarge}")
+        if not (math.isfinite(self.border) and 0.0 <= self.border < 0.5):
+            raise ValueError(f"border must be at least 0 and below 0.5, got {self.border}")
+        n = self.triangles
+        if isinstance(n, bool) or not isinstance(n, int):
+            raise ValueError(f"triangles must be an integer, got {n!r}")
+        if n != 0 and (n % 4 or not 4 <= n <= MAX_TRIANGLES):
+            raise ValueError(
+                f"triangles must be 0 (continuous) or a multiple of 4 from 4 to "
+                f"{MAX_TRIANGLES}, got {n}"
+            )
+        if self.hfov is not None and not (math.isfinite(self.hfov) and 0.0 < self.hfov < 180.0):
+            raise ValueError(f"hfov must be between 0 and 180 degrees, got {self.hfov}")
