@@ -56,16 +56,17 @@ def read_plate(path: str) -> Plate:
     oiio = _oiio()
     if not os.path.isfile(path):
         raise ImageError(f"plate not found: {path}")
-    inp = oiio.ImageInput.open(path)
+    config = oiio.ImageSpec()
+    config.attribute("oiio:UnassociatedAlpha", 1)  # alpha is ignored: keep colour as stored
+    inp = oiio.ImageInput.open(path, config)
     if inp is None:
         raise ImageError(f"cannot read plate {path}: {_first_line(oiio.geterror())}")
     try:
         spec = inp.spec()
         if spec.width < 1 or spec.height < 1 or spec.nchannels < 1:
             raise ImageError(f"plate {path} is empty ({spec.width}x{spec.height})")
-        base = str(spec.format.basetype).rsplit(".", 1)[-1].upper()
-        integer = base in ("UINT8", "UINT16", "INT8", "INT16")
-        fmt = {"UINT8": "uint8"}.get(base, "uint16" if integer else "float")
+        integer = str(spec.format) in ("uint8", "int8", "uint16", "int16")
+        fmt = "uint8" if str(spec.format) == "uint8" else "uint16" if integer else "float"
         pixels = inp.read_image(0, 0, 0, min(spec.nchannels, 4), fmt)
         if pixels is None or inp.has_error:
             raise ImageError(f"cannot read plate {path}: {_first_line(inp.geterror())}")
@@ -113,7 +114,10 @@ def write_map(path: str, pixels: np.ndarray, layout: str | None = None, half: bo
     ext = check_writable(path)
     pixels = np.ascontiguousarray(pixels, dtype=np.float32)
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".vr-", suffix=ext, dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".vr-", suffix=ext, dir=folder)
+    except OSError as exc:
+        raise ImageError(f"cannot write in {folder}: {exc.strerror}") from exc
     os.close(fd)
     try:
         if ext == ".exr":
@@ -121,6 +125,9 @@ def write_map(path: str, pixels: np.ndarray, layout: str | None = None, half: bo
         else:
             _write_oiio(tmp, pixels, ext)
         os.replace(tmp, path)
+    except OSError as exc:
+        os.unlink(tmp)
+        raise ImageError(f"cannot write {path}: {exc.strerror}") from exc
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

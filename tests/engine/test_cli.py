@@ -1,0 +1,91 @@
+"""The command line's contract: options, exit codes, outputs, no partial files."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import OpenEXR
+import OpenImageIO as oiio
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "virtual_reflections", *map(str, args)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def plate(tmp_path_factory):
+    path = tmp_path_factory.mktemp("plates") / "plate.png"
+    y, x = np.mgrid[0:90, 0:160]
+    pixels = np.stack([x * 255 // 160, y * 255 // 90, np.full_like(x, 90)], -1).astype(np.uint8)
+    buf = oiio.ImageBuf(oiio.ImageSpec(160, 90, 3, "uint8"))
+    buf.set_pixels(oiio.ROI(), pixels)
+    buf.write(str(path))
+    return path
+
+
+def test_envmap_writes_each_format(plate, tmp_path):
+    for name, layout, shape in (("m.exr", "latlong", (64, 128)), ("c.exr", "cube", (96, 16)),
+                                ("m.hdr", "latlong", (64, 128)), ("m.png", "latlong", (64, 128)),
+                                ("m.jpg", "latlong", (64, 128)), ("m.tif", "cube", (96, 16))):
+        width = 128 if layout == "latlong" else 16
+        r = run("envmap", plate, "-o", tmp_path / name, "--bbox", 60, 30, 100, 60,
+                "--layout", layout, "--width", width, "--triangles", 32, "--enlarge", 0.05,
+                "--border", 0.1, "--hfov", 60)
+        assert r.returncode == 0, r.stderr
+        spec = oiio.ImageInput.open(str(tmp_path / name)).spec()
+        assert (spec.height, spec.width) == shape, name
+    header = OpenEXR.File(str(tmp_path / "c.exr"), header_only=True).header()
+    assert header["envmap"] == OpenEXR.ENVMAP_CUBE
+
+
+def test_segment_writes_an_overlay(plate, tmp_path):
+    r = run("segment", plate, "-o", tmp_path / "seg.png", "--bbox", 60, 30, 100, 60,
+            "--triangles", 16)
+    assert r.returncode == 0, r.stderr
+    assert oiio.ImageInput.open(str(tmp_path / "seg.png")).spec().width == 160
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("envmap", "{missing}", "-o", "{out}", "--bbox", 1, 1, 5, 5),
+        ("envmap", "{corrupt}", "-o", "{out}", "--bbox", 1, 1, 5, 5),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 40, 5),  # X0 >= X1
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 50, 5),
+        ("envmap", "{plate}", "-o", "{tmp}/m.webpx", "--bbox", 1, 1, 5, 5),
+        ("envmap", "{plate}", "-o", "{tmp}/nowhere/m.exr", "--bbox", 1, 1, 5, 5),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--triangles", 6),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--width", 7),
+        ("segment", "{missing}", "-o", "{tmp}/s.png", "--bbox", 1, 1, 5, 5),
+        ("frobnicate",),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_no_file(plate, tmp_path, args):
+    corrupt = tmp_path / "corrupt.jpg"
+    corrupt.write_bytes(b"\xff\xd8\xff\xe0 not really a jpeg")
+    subs = dict(missing=tmp_path / "missing.png", corrupt=corrupt, plate=plate,
+                out=tmp_path / "out.exr", tmp=tmp_path)
+    r = run(*(str(a).format(**{k: str(v) for k, v in subs.items()}) for a in args))
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["corrupt.jpg"]
+
+
+def test_unwritable_output_leaves_nothing(plate, tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    # Root may write anywhere it has permission bits for; /proc refuses new files to all.
+    target = locked if not os.access(locked, os.W_OK) else "/proc"
+    try:
+        r = run("envmap", plate, "-o", f"{target}/m.exr", "--bbox", 1, 1, 5, 5)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert not os.path.exists(f"{target}/m.exr") and list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
