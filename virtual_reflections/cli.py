@@ -36,24 +36,48 @@ class _Parser(argparse.ArgumentParser):
 def _add_map_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("plate", metavar="PLATE", help="background plate (EXR, HDR, PNG, JPEG, TIFF...)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output file")
-    p.add_argument("--bbox", nargs=4, type=float, required=True, metavar=("X0", "Y0", "X1", "Y1"),
-                   help="object bounds in plate pixels (origin top-left, y down, X1/Y1 exclusive)")
+    p.add_argument(
+        "--bbox",
+        nargs=4,
+        type=float,
+        required=True,
+        metavar=("X0", "Y0", "X1", "Y1"),
+        help="object bounds in plate pixels (origin top-left, y down, X1/Y1 exclusive)",
+    )
     p.add_argument("--layout", choices=("latlong", "cube"), default="latlong")
-    p.add_argument("--width", type=int, default=None,
-                   help="lat-long width (height = width/2) or cube face size "
-                        f"(default {DEFAULT_SIZE['latlong']} lat-long, {DEFAULT_SIZE['cube']} cube)")
-    p.add_argument("--triangles", type=int, default=0,
-                   help="n front-face triangles, a multiple of 4 (4..1024); 0 = continuous limit")
-    p.add_argument("--enlarge", type=float, default=Params.enlarge,
-                   help="enlargement of the bounds, fraction of the image size (default 0.075)")
-    p.add_argument("--border", type=float, default=Params.border,
-                   help="minimum distance of X from the border, fraction (default 0.15)")
+    p.add_argument(
+        "--width",
+        type=int,
+        default=None,
+        help="lat-long width (height = width/2) or cube face size "
+        f"(default {DEFAULT_SIZE['latlong']} lat-long, {DEFAULT_SIZE['cube']} cube)",
+    )
+    p.add_argument(
+        "--triangles",
+        type=int,
+        default=0,
+        help="n front-face triangles, a multiple of 4 (4..1024); 0 = continuous limit",
+    )
+    p.add_argument(
+        "--enlarge",
+        type=float,
+        default=Params.enlarge,
+        help="enlargement of the bounds, fraction of the image size (default 0.075)",
+    )
+    p.add_argument(
+        "--border",
+        type=float,
+        default=Params.border,
+        help="minimum distance of X from the border, fraction (default 0.15)",
+    )
     p.add_argument("--hfov", type=float, default=None, help="horizontal field of view (degrees)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m virtual_reflections",
-                     description="Environment maps from a plate, after Ropinski et al. 2004.")
+    parser = _Parser(
+        prog="python -m virtual_reflections",
+        description="Environment maps from a plate, after Ropinski et al. 2004.",
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     p = sub.add_parser("envmap", help="build the environment map of an object on a plate")
     _add_map_options(p)
@@ -70,8 +94,9 @@ def _params(args) -> Params:
     if not (x0 < x1 and y0 < y1):
         raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
     try:
-        return Params(enlarge=args.enlarge, border=args.border, triangles=args.triangles,
-                      hfov=args.hfov)
+        return Params(
+            enlarge=args.enlarge, border=args.border, triangles=args.triangles, hfov=args.hfov
+        )
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
 
@@ -98,9 +123,11 @@ def run_envmap(args) -> None:
         notes.append(f"replaced {plate.nonfinite} NaN/Inf values")
     if seg.shrunk:
         notes.append("region X is smaller than the object's bounds (near the border)")
-    print(f"wrote {args.output}: {args.layout} {env.shape[1]}x{env.shape[0]} from a {w}x{h} "
-          f"{plate.encoding} plate in {1000 * (time.perf_counter() - started):.0f} ms"
-          + "".join(f"; {n}" for n in notes))
+    print(
+        f"wrote {args.output}: {args.layout} {env.shape[1]}x{env.shape[0]} from a {w}x{h} "
+        f"{plate.encoding} plate in {1000 * (time.perf_counter() - started):.0f} ms"
+        + "".join(f"; {n}" for n in notes)
+    )
 
 
 def run_segment(args) -> None:
@@ -113,8 +140,10 @@ def run_segment(args) -> None:
     h, w = plate.pixels.shape[:2]
     seg = segment(w, h, args.bbox, params)
     write_map(args.output, draw_segmentation(plate.pixels, seg, params.triangles))
-    print(f"wrote {args.output}: segmentation of a {w}x{h} plate"
-          + (" (X shrunk to keep the border distance)" if seg.shrunk else ""))
+    print(
+        f"wrote {args.output}: segmentation of a {w}x{h} plate"
+        + (" (X shrunk to keep the border distance)" if seg.shrunk else "")
+    )
 
 
 def main(argv=None) -> int:

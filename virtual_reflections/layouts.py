@@ -62,14 +62,31 @@ def cube_directions(face: np.ndarray, fc: np.ndarray, fr: np.ndarray, size: int)
     face, fc, fr = np.broadcast_arrays(face, np.asarray(fc, np.float64), fr)
     scale = 2.0 / (size - 1)
     a, b = fc * scale - 1.0, np.asarray(fr, np.float64) * scale - 1.0
-    one = np.ones_like(a)
     out = np.empty(a.shape + (3,))
-    for f, axes in enumerate(
-        [(one, -b, a), (-one, -b, -a), (a, one, -b), (a, -one, b), (-a, -b, one), (a, -b, -one)]
-    ):
+    for f, (ix, sx, iy, sy, iz, sz) in enumerate(_FACE_AXES):
         m = face == f
-        out[m] = np.stack([v[m] for v in axes], -1)
+        if not m.any():
+            continue
+        ab = (None, a[m], b[m])
+        out[m] = np.stack(
+            [
+                s * ab[i] if i else np.full(ab[1].shape, s)
+                for i, s in ((ix, sx), (iy, sy), (iz, sz))
+            ],
+            -1,
+        )
     return out
+
+
+# Per face, each direction component as (source, sign): source 1 = a, 2 = b, 0 = constant.
+_FACE_AXES = (
+    (0, 1, 2, -1, 1, 1),  # +X: ( 1, -b,  a)
+    (0, -1, 2, -1, 1, -1),  # -X: (-1, -b, -a)
+    (1, 1, 0, 1, 2, -1),  # +Y: ( a,  1, -b)
+    (1, 1, 0, -1, 2, 1),  # -Y: ( a, -1,  b)
+    (1, -1, 2, -1, 0, 1),  # +Z: (-a, -b,  1)
+    (1, 1, 2, -1, 0, -1),  # -Z: ( a, -b, -1)
+)
 
 
 def texel_directions(layout: str, size: int, offset=(0.0, 0.0)) -> np.ndarray:
@@ -84,8 +101,7 @@ def texel_directions(layout: str, size: int, offset=(0.0, 0.0)) -> np.ndarray:
         fx = np.arange(width, dtype=np.float64)[None, :] + 0.5 + dx
         fy = np.arange(height, dtype=np.float64)[:, None] + 0.5 + dy
         return latlong_directions(fx, fy, width)
-    rows = np.arange(height)
-    face, row = (rows // size)[:, None], (rows % size)[:, None] + dy
+    # Faces are whole blocks of rows: fill them one by one (no per-texel face lookup).
     fc = np.arange(width, dtype=np.float64)[None, :] + dx
-    # The shifted position stays in its own face: footprints never straddle faces.
-    return cube_directions(face, fc, row, size)
+    fr = np.arange(size, dtype=np.float64)[:, None] + dy
+    return np.concatenate([cube_directions(np.full((1, 1), f), fc, fr, size) for f in range(6)])

@@ -51,7 +51,9 @@ def region_labels(seg: Segmentation) -> np.ndarray:
     plate = Rect(0.0, 0.0, float(seg.width), float(seg.height))
     in_x = (px >= X.x0) & (px < X.x1) & (py >= X.y0) & (py < X.y1)
     in_inner = (px >= inner.x0) & (px < inner.x1) & (py >= inner.y0) & (py < inner.y1)
-    labels = np.where(in_inner, 1 + _ring_side(px, py, X, inner), 5 + _ring_side(px, py, inner, plate))
+    labels = np.where(
+        in_inner, 1 + _ring_side(px, py, X, inner), 5 + _ring_side(px, py, inner, plate)
+    )
     return np.where(in_x, 0, labels).astype(np.int8)
 
 
@@ -94,8 +96,14 @@ def draw_segmentation(plate: np.ndarray, seg: Segmentation, triangles: int = 0) 
     _draw_line(img, (0, cy), (W, cy), yellow, lw, dash=6 * lw)
     b = seg.bbox
     for p, q in zip(corners(b), corners(b)[1:] + corners(b)[:1]):
-        _draw_line(img, (np.clip(p[0], 0, W), np.clip(p[1], 0, H)),
-                   (np.clip(q[0], 0, W), np.clip(q[1], 0, H)), black, lw, dash=2 * lw)
+        _draw_line(
+            img,
+            (np.clip(p[0], 0, W), np.clip(p[1], 0, H)),
+            (np.clip(q[0], 0, W), np.clip(q[1], 0, H)),
+            black,
+            lw,
+            dash=2 * lw,
+        )
     if triangles:
         for base, apex in triangle_edges(seg, triangles):
             _draw_line(img, base, apex, yellow, max(1, lw // 2))
@@ -116,8 +124,12 @@ def triangle_edges(seg: Segmentation, triangles: int):
         s0, s1 = -1 + 2 * i / k, -1 + 2 * (i + 1) / k
         sm = 0.5 * (s0 + s1)
         for s in (s0, s1):
-            edges.append(((inner.x0, _split(s, inner.y0, cy, inner.y1)), (0.0, _split(sm, 0, cy, H))))
+            edges.append(
+                ((inner.x0, _split(s, inner.y0, cy, inner.y1)), (0.0, _split(sm, 0, cy, H)))
+            )
             edges.append(((inner.x1, _split(s, inner.y0, cy, inner.y1)), (W, _split(sm, 0, cy, H))))
-            edges.append(((_split(s, inner.x0, cx, inner.x1), inner.y0), (_split(sm, 0, cx, W), 0.0)))
+            edges.append(
+                ((_split(s, inner.x0, cx, inner.x1), inner.y0), (_split(sm, 0, cx, W), 0.0))
+            )
             edges.append(((_split(s, inner.x0, cx, inner.x1), inner.y1), (_split(sm, 0, cx, W), H)))
     return edges

@@ -28,12 +28,13 @@ import math
 
 import numpy as np
 
+from .layouts import map_shape, texel_directions
+
 __all__ = [
     "blender_equirect_direction",
     "blender_equirect_lookup",
     "blender_world_to_camera",
     "camera_frame_directions",
-    "camera_latlong_directions",
     "camera_rotation",
     "camera_rotation_euler",
     "camera_to_blender_world",
@@ -277,37 +278,22 @@ def perspective_plate(
     return (total / len(offsets)).astype(np.float32)
 
 
-def camera_latlong_directions(width, subpixel=(0.5, 0.5)):
-    """Camera-frame unit directions `(width // 2, width, 3)` float64 of a product lat-long map.
-
-    Pixel centre `(x + 0.5, y + 0.5)` (default `subpixel`) has
-    `lat = -pi ((y + 0.5) / H - 0.5)`, `lon = -2pi ((x + 0.5) / W - 0.5)` and direction
-    `(sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))`: the centre column looks along +Z (the
-    plate's centre), up is up, +X (the plate's left) is left of centre, the edges look back.
-    """
-    if width % 2:
-        raise ValueError(f"a lat-long map needs an even width (W = 2H), got {width}")
-    height = width // 2
-    lon = -2.0 * math.pi * ((np.arange(width) + subpixel[0]) / width - 0.5)
-    lat = -math.pi * ((np.arange(height) + subpixel[1]) / height - 0.5)
-    lon, lat = np.meshgrid(lon, lat)
-    cos_lat = np.cos(lat)
-    return np.stack([np.sin(lon) * cos_lat, np.sin(lat), np.cos(lon) * cos_lat], axis=-1)
-
-
 def ground_truth_latlong(equirect, rotation, width, supersample=2):
     """The whole surroundings of the camera as a product lat-long map `(W/2, W, 3)` float32.
 
     equirect: `(H, W, 3)` float32 scene-linear Blender-convention world lat-long.
     rotation: `(3, 3)` world rotation of the Blender camera (`camera_rotation`).
     width: W of the output (even); its height is W / 2.
-    The output is in the camera frame's lat-long convention (CONVENTIONS.md): its centre column
+    The output is in the camera frame's lat-long convention (CONVENTIONS.md, `layouts.py`):
+    `lat = -pi ((y + 0.5) / H - 0.5)`, `lon = -2pi ((x + 0.5) / W - 0.5)`, direction
+    `(sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))`. Its centre column
     is the camera's viewing direction, so the plate appears upright and unmirrored around the
     centre. Each pixel averages `supersample x supersample` stratified bilinear samples.
     """
-    total = np.zeros((width // 2, width, 3), dtype=np.float64)
+    total = np.zeros((*map_shape("latlong", width), 3), dtype=np.float64)
     offsets = _subpixel_offsets(supersample)
-    for subpixel in offsets:
-        dirs = camera_to_blender_world(camera_latlong_directions(width, subpixel), rotation)
+    for sx, sy in offsets:
+        dirs_cam = texel_directions("latlong", width, (sx - 0.5, sy - 0.5))
+        dirs = camera_to_blender_world(dirs_cam, rotation)
         total += sample_equirect(equirect, dirs)[..., :3]
     return (total / len(offsets)).astype(np.float32)

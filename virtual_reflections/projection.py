@@ -98,11 +98,13 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
             apex_s = s
         plus = major > 0  # toward +X (left) or +Y (top)
         # Base on `inner`, apex on the image border, both split at the centre lines.
-        base_fixed = np.where(horiz, np.where(plus, inner.x0, inner.x1),
-                              np.where(plus, inner.y0, inner.y1))
+        base_fixed = np.where(
+            horiz, np.where(plus, inner.x0, inner.x1), np.where(plus, inner.y0, inner.y1)
+        )
         apex_fixed = np.where(horiz, np.where(plus, 0.0, W), np.where(plus, 0.0, H))
-        base_along = np.where(horiz, _split(s, inner.y0, cy, inner.y1),
-                              _split(s, inner.x0, cx, inner.x1))
+        base_along = np.where(
+            horiz, _split(s, inner.y0, cy, inner.y1), _split(s, inner.x0, cx, inner.x1)
+        )
         apex_along = np.where(horiz, _split(apex_s, 0.0, cy, H), _split(apex_s, 0.0, cx, W))
         fixed = (1 - r) * base_fixed + r * apex_fixed
         along = (1 - r) * base_along + r * apex_along

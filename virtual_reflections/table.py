@@ -85,22 +85,25 @@ def _footprint(layout: str, size: int, position: np.ndarray) -> np.ndarray:
     return np.maximum(across, down)
 
 
-def _bilinear(px, py, level, shapes, offsets, index, weight) -> None:
-    """Write the 4 bilinear taps at level-0 position (px, py) on mip `level` into
-    index (T, 4) and weight (T, 4)."""
-    scale = np.exp2(-level).astype(np.float32)
-    h = np.array([s[0] for s in shapes], dtype=np.int64)[level]
-    w = np.array([s[1] for s in shapes], dtype=np.int64)[level]
-    fx, fy = px * scale - 0.5, py * scale - 0.5
+def _bilinear(px, py, lo, shapes, offsets):
+    """Bilinear taps at level-0 positions (px, py) on mip levels lo and lo + 1.
+
+    Returns index (T, 2, 4) intp and weight (T, 2, 4) float32 (unblended)."""
+    level = np.minimum(lo[:, None] + np.arange(2), len(shapes) - 1)  # (T, 2)
+    h = np.array([s[0] for s in shapes], dtype=np.intp)[level]
+    w = np.array([s[1] for s in shapes], dtype=np.intp)[level]
+    scale = np.exp2(-level.astype(np.float32))
+    fx, fy = px[:, None] * scale - 0.5, py[:, None] * scale - 0.5
     x0, y0 = np.floor(fx), np.floor(fy)
     ax, ay = fx - x0, fy - y0
-    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    x0, y0 = x0.astype(np.intp), y0.astype(np.intp)
     xa, xb = np.clip(x0, 0, w - 1), np.clip(x0 + 1, 0, w - 1)
     row_a = offsets[level] + np.clip(y0, 0, h - 1) * w
     row_b = offsets[level] + np.clip(y0 + 1, 0, h - 1) * w
-    index[:, 0], index[:, 1], index[:, 2], index[:, 3] = row_a + xa, row_a + xb, row_b + xa, row_b + xb
+    index = np.stack((row_a + xa, row_a + xb, row_b + xa, row_b + xb), -1)
     bx, by = 1 - ax, 1 - ay
-    weight[:, 0], weight[:, 1], weight[:, 2], weight[:, 3] = bx * by, ax * by, bx * ay, ax * ay
+    weight = np.stack((bx * by, ax * by, bx * ay, ax * ay), -1)
+    return index, weight
 
 
 def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -> LookupTable:
@@ -112,17 +115,14 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
     offsets = level_offsets(shapes)
     top = len(shapes) - 1
     lod = np.clip(np.log2(np.maximum(footprint, 1e-12)), 0.0, top).astype(np.float32).ravel()
-    lo = np.minimum(lod.astype(np.int64), max(top - 1, 0))
-    hi = np.minimum(lo + 1, top)
+    lo = np.minimum(lod.astype(np.intp), max(top - 1, 0))
     blend = lod - lo
     px = position[..., 0].astype(np.float32).ravel()
     py = position[..., 1].astype(np.float32).ravel()
-    index = np.empty((px.size, 8), dtype=np.intp)
-    weight = np.empty((px.size, 8), dtype=np.float32)
-    _bilinear(px, py, lo, shapes, offsets, index[:, :4], weight[:, :4])
-    _bilinear(px, py, hi, shapes, offsets, index[:, 4:], weight[:, 4:])
-    weight[:, :4] *= (1 - blend)[:, None]
-    weight[:, 4:] *= blend[:, None]
+    index, weight = _bilinear(px, py, lo, shapes, offsets)
+    weight[:, 0] *= (1 - blend)[:, None]
+    weight[:, 1] *= blend[:, None]
+    index, weight = index.reshape(-1, 8), weight.reshape(-1, 8)
     for a in (index, weight, position, lod):
         a.flags.writeable = False
     return LookupTable(
@@ -130,7 +130,7 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
         layout=layout,
         size=size,
         shape=shape,
-        levels=int(hi.max()) + 1,
+        levels=min(int(lo.max()) + 2, top + 1),
         index=index,
         weight=weight,
         position=position,

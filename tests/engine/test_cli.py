@@ -13,8 +13,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "virtual_reflections", *map(str, args)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "virtual_reflections", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -29,13 +34,38 @@ def plate(tmp_path_factory):
 
 
 def test_envmap_writes_each_format(plate, tmp_path):
-    for name, layout, shape in (("m.exr", "latlong", (64, 128)), ("c.exr", "cube", (96, 16)),
-                                ("m.hdr", "latlong", (64, 128)), ("m.png", "latlong", (64, 128)),
-                                ("m.jpg", "latlong", (64, 128)), ("m.tif", "cube", (96, 16))):
+    for name, layout, shape in (
+        ("m.exr", "latlong", (64, 128)),
+        ("c.exr", "cube", (96, 16)),
+        ("m.hdr", "latlong", (64, 128)),
+        ("m.png", "latlong", (64, 128)),
+        ("m.jpg", "latlong", (64, 128)),
+        ("m.tif", "cube", (96, 16)),
+    ):
         width = 128 if layout == "latlong" else 16
-        r = run("envmap", plate, "-o", tmp_path / name, "--bbox", 60, 30, 100, 60,
-                "--layout", layout, "--width", width, "--triangles", 32, "--enlarge", 0.05,
-                "--border", 0.1, "--hfov", 60)
+        r = run(
+            "envmap",
+            plate,
+            "-o",
+            tmp_path / name,
+            "--bbox",
+            60,
+            30,
+            100,
+            60,
+            "--layout",
+            layout,
+            "--width",
+            width,
+            "--triangles",
+            32,
+            "--enlarge",
+            0.05,
+            "--border",
+            0.1,
+            "--hfov",
+            60,
+        )
         assert r.returncode == 0, r.stderr
         spec = oiio.ImageInput.open(str(tmp_path / name)).spec()
         assert (spec.height, spec.width) == shape, name
@@ -44,8 +74,9 @@ def test_envmap_writes_each_format(plate, tmp_path):
 
 
 def test_segment_writes_an_overlay(plate, tmp_path):
-    r = run("segment", plate, "-o", tmp_path / "seg.png", "--bbox", 60, 30, 100, 60,
-            "--triangles", 16)
+    r = run(
+        "segment", plate, "-o", tmp_path / "seg.png", "--bbox", 60, 30, 100, 60, "--triangles", 16
+    )
     assert r.returncode == 0, r.stderr
     assert oiio.ImageInput.open(str(tmp_path / "seg.png")).spec().width == 160
 
@@ -69,8 +100,13 @@ def test_segment_writes_an_overlay(plate, tmp_path):
 def test_bad_input_is_one_line_exit_2_and_no_file(plate, tmp_path, args):
     corrupt = tmp_path / "corrupt.jpg"
     corrupt.write_bytes(b"\xff\xd8\xff\xe0 not really a jpeg")
-    subs = dict(missing=tmp_path / "missing.png", corrupt=corrupt, plate=plate,
-                out=tmp_path / "out.exr", tmp=tmp_path)
+    subs = dict(
+        missing=tmp_path / "missing.png",
+        corrupt=corrupt,
+        plate=plate,
+        out=tmp_path / "out.exr",
+        tmp=tmp_path,
+    )
     r = run(*(str(a).format(**{k: str(v) for k, v in subs.items()}) for a in args))
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr

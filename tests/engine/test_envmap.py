@@ -26,22 +26,43 @@ def region_plate(seg):
     X, then the side trapezoids (between X and inner, split by the corner diagonals), then
     the ring F's trapezoids. Each region gets a colour from COLOURS."""
     py, px = np.mgrid[0:H, 0:W] + 0.5
-    X, I = seg.x, seg.inner
+    X, inner = seg.x, seg.inner
 
     def side(a, b):  # which trapezoid of the ring between rect a (inside) and b (outside)
-        d = np.stack([(a.x0 - px) / (a.x0 - b[0]), (px - a.x1) / (b[2] - a.x1),
-                      (a.y0 - py) / (a.y0 - b[1]), (py - a.y1) / (b[3] - a.y1)])
+        d = np.stack(
+            [
+                (a.x0 - px) / (a.x0 - b[0]),
+                (px - a.x1) / (b[2] - a.x1),
+                (a.y0 - py) / (a.y0 - b[1]),
+                (py - a.y1) / (b[3] - a.y1),
+            ]
+        )
         return np.argmax(d, 0)
 
-    label = np.where((px >= I.x0) & (px < I.x1) & (py >= I.y0) & (py < I.y1),
-                     1 + side(X, (I.x0, I.y0, I.x1, I.y1)), 5 + side(I, (0, 0, W, H)))
+    label = np.where(
+        (px >= inner.x0) & (px < inner.x1) & (py >= inner.y0) & (py < inner.y1),
+        1 + side(X, (inner.x0, inner.y0, inner.x1, inner.y1)),
+        5 + side(inner, (0, 0, W, H)),
+    )
     label[(px >= X.x0) & (px < X.x1) & (py >= X.y0) & (py < X.y1)] = 0
     return COLOURS[label]
 
 
 # X, L, R, T, B, F_L, F_R, F_T, F_B
-COLOURS = np.array([[1, 1, 1], [1, 0, 0], [0, 0, 1], [0, 1, 0], [1, 1, 0],
-                    [1, 0, 1], [0, 1, 1], [0.5, 0, 0], [0, 0, 0.5]], dtype=np.float32)
+COLOURS = np.array(
+    [
+        [1, 1, 1],
+        [1, 0, 0],
+        [0, 0, 1],
+        [0, 1, 0],
+        [1, 1, 0],
+        [1, 0, 1],
+        [0, 1, 1],
+        [0.5, 0, 0],
+        [0, 0, 0.5],
+    ],
+    dtype=np.float32,
+)
 
 
 def test_regions_land_on_the_paper_faces():
@@ -58,8 +79,12 @@ def test_regions_land_on_the_paper_faces():
     # there, so texels average over their footprint: check the nearest region colour.
     front = face(cube, "-Z", S)  # columns: x = -1..1 (x < 0 is the right); rows: y = +1..-1
     q = S // 4
-    for (row, col), expected in {(S // 2, q): 6, (S // 2, S - 1 - q): 5, (q, S // 2): 7,
-                                  (S - 1 - q, S // 2): 8}.items():
+    for (row, col), expected in {
+        (S // 2, q): 6,
+        (S // 2, S - 1 - q): 5,
+        (q, S // 2): 7,
+        (S - 1 - q, S // 2): 8,
+    }.items():
         got = front[row, col]
         assert np.argmin(np.abs(COLOURS - got).sum(1)) == expected, (row, col, got)
 
@@ -86,12 +111,18 @@ def _edge(img, side):
 
 
 EDGES = [
-    ("+Z", "left", "+X", "right"), ("+Z", "right", "-X", "left"),
-    ("+Z", "top", "+Y", "top"), ("+Z", "bottom", "-Y", "bottom"),
-    ("-Z", "left", "-X", "right"), ("-Z", "right", "+X", "left"),
-    ("-Z", "top", "+Y", "bottom"), ("-Z", "bottom", "-Y", "top"),
-    ("+X", "top", "+Y", "right"), ("-X", "top", "+Y", "left"),
-    ("+X", "bottom", "-Y", "right"), ("-X", "bottom", "-Y", "left"),
+    ("+Z", "left", "+X", "right"),
+    ("+Z", "right", "-X", "left"),
+    ("+Z", "top", "+Y", "top"),
+    ("+Z", "bottom", "-Y", "bottom"),
+    ("-Z", "left", "-X", "right"),
+    ("-Z", "right", "+X", "left"),
+    ("-Z", "top", "+Y", "bottom"),
+    ("-Z", "bottom", "-Y", "top"),
+    ("+X", "top", "+Y", "right"),
+    ("-X", "top", "+Y", "left"),
+    ("+X", "bottom", "-Y", "right"),
+    ("-X", "bottom", "-Y", "left"),
 ]
 
 
@@ -156,9 +187,16 @@ def test_one_pixel_checkerboard_does_not_alias():
 
 @pytest.mark.parametrize(
     "bbox",
-    [(0, 100, 40, 200), (360, 100, 400, 200), (150, 0, 250, 20), (150, 280, 250, 300),
-     (-100, -100, 500, 400), (-300, -300, -200, -200), (1000, 50, 1100, 80),
-     (200, 150, 200, 150)],
+    [
+        (0, 100, 40, 200),
+        (360, 100, 400, 200),
+        (150, 0, 250, 20),
+        (150, 280, 250, 300),
+        (-100, -100, 500, 400),
+        (-300, -300, -200, -200),
+        (1000, 50, 1100, 80),
+        (200, 150, 200, 150),
+    ],
 )
 def test_any_bounds_give_a_valid_finite_map(bbox):
     py, px = np.mgrid[0:H, 0:W]

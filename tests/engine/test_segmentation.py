@@ -31,8 +31,14 @@ def test_x_keeps_the_border_distance_and_can_be_smaller_than_the_box():
 
 @pytest.mark.parametrize(
     "bbox",
-    [(-500, -500, -400, -400), (2000, 100, 2100, 200), (0, 0, 1000, 500), (-100, -100, 1100, 600),
-     (500, 250, 500, 250), (0, 0, 1, 1)],
+    [
+        (-500, -500, -400, -400),
+        (2000, 100, 2100, 200),
+        (0, 0, 1000, 500),
+        (-100, -100, 1100, 600),
+        (500, 250, 500, 250),
+        (0, 0, 1, 1),
+    ],
 )
 def test_x_never_collapses(bbox):
     seg = segment(1000, 500, bbox)
@@ -47,8 +53,15 @@ def test_tiny_plate():
 
 
 @pytest.mark.parametrize(
-    "kwargs", [dict(triangles=6), dict(triangles=2048), dict(border=0.5), dict(enlarge=-0.1),
-               dict(hfov=0), dict(triangles=True)]
+    "kwargs",
+    [
+        dict(triangles=6),
+        dict(triangles=2048),
+        dict(border=0.5),
+        dict(enlarge=-0.1),
+        dict(hfov=0),
+        dict(triangles=True),
+    ],
 )
 def test_bad_params_are_refused(kwargs):
     with pytest.raises(ValueError):
