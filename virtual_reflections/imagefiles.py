@@ -119,7 +119,10 @@ def write_map(path: str, pixels: np.ndarray, layout: str | None = None, half: bo
     except OSError as exc:
         raise ImageError(f"cannot write in {folder}: {exc.strerror}") from exc
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
     try:
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; outputs get the usual permissions
         if ext == ".exr":
             _write_exr(tmp, pixels, layout, half)
         else:

@@ -286,9 +286,9 @@ def ground_truth_latlong(equirect, rotation, width, supersample=2):
     width: W of the output (even); its height is W / 2.
     The output is in the camera frame's lat-long convention (CONVENTIONS.md, `layouts.py`):
     `lat = -pi ((y + 0.5) / H - 0.5)`, `lon = -2pi ((x + 0.5) / W - 0.5)`, direction
-    `(sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))`. Its centre column
-    is the camera's viewing direction, so the plate appears upright and unmirrored around the
-    centre. Each pixel averages `supersample x supersample` stratified bilinear samples.
+    `(sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))`. Its centre column is the camera's
+    viewing direction, so the plate appears upright and unmirrored around the centre.
+    Each pixel averages `supersample x supersample` stratified bilinear samples.
     """
     total = np.zeros((*map_shape("latlong", width), 3), dtype=np.float64)
     offsets = _subpixel_offsets(supersample)
