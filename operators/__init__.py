@@ -1,6 +1,8 @@
 """Everything that touches bpy data: bounds, images, node groups, renders."""
 
-_modules = ()
+from . import generate
+
+_modules = (generate,)
 
 
 def register():

@@ -1,6 +1,8 @@
 """Panels and properties of the N-panel tab."""
 
-_modules = ()
+from . import panel, properties
+
+_modules = (properties, panel)
 
 
 def register():

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .colour import clean_plate
-from .mipmap import build_pyramid
+from .mipmap import build_pyramid, pyramid_size
 from .params import Params
 from .table import LookupTable, lookup_table
 
@@ -30,8 +30,10 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             f"plate is {plate.shape[1]}x{plate.shape[0]}, table was built for "
             f"{seg.width}x{seg.height}"
         )
-    pyramid = build_pyramid(plate, table.levels)
-    taps = np.take(pyramid, table.index, axis=0, mode="clip")  # (T, 8, 3)
+    rows = pyramid_size(seg.height, seg.width, table.levels)
+    pyramid = build_pyramid(plate, table.levels, out=table.scratch("pyramid", (rows, 3)))
+    taps = table.scratch("taps", table.index.shape + (3,))
+    np.take(pyramid, table.index, axis=0, mode="clip", out=taps)  # (T, 8, 3)
     out = np.einsum("tkc,tk->tc", taps, table.weight)
     return out.reshape(table.shape + (3,))
 

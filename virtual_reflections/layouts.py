@@ -43,14 +43,19 @@ def map_shape(layout: str, size: int) -> tuple[int, int]:
 def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int) -> np.ndarray:
     """Directions at continuous lat-long pixel positions (fx, fy); pixel centres at +0.5.
 
-    fx, fy broadcast together; returns (..., 3) float64 unit vectors.
+    fx, fy broadcast together; returns (..., 3) float64 unit vectors. For a grid, pass fx
+    as a row (1, W) and fy as a column (H, 1): the trigonometry then runs on 1-D arrays.
     """
     height = width // 2
     lat = -np.pi * (np.asarray(fy, dtype=np.float64) / height - 0.5)
     lon = -2.0 * np.pi * (np.asarray(fx, dtype=np.float64) / width - 0.5)
-    lat, lon = np.broadcast_arrays(lat, lon)
+    shape = np.broadcast_shapes(lat.shape, lon.shape)
     c = np.cos(lat)
-    return np.stack((np.sin(lon) * c, np.sin(lat), np.cos(lon) * c), axis=-1)
+    out = np.empty(shape + (3,))
+    np.multiply(np.sin(lon), c, out=out[..., 0])
+    out[..., 1] = np.sin(lat)
+    np.multiply(np.cos(lon), c, out=out[..., 2])
+    return out
 
 
 def cube_directions(face: np.ndarray, fc: np.ndarray, fr: np.ndarray, size: int) -> np.ndarray:

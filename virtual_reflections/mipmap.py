@@ -2,8 +2,10 @@
 
 Level 0 is the plate; level l+1 averages 2 x 2 pixels of level l (an odd last row/column is
 repeated). Level l's pixel (i, j) covers [j 2^l, (j+1) 2^l] x [i 2^l, (i+1) 2^l] in level-0
-plate coordinates. All levels are rows of one (P, 3) float32 array so a lookup table can
-address any texel of any level with a single index.
+plate coordinates. Every level is stored with a one-pixel border that repeats its edge
+pixels, so bilinear taps never need clamping: level l's pixel (i, j) is row
+`offsets[l] + (i + 1) * (w + 2) + (j + 1)` of one (P, 3) float32 array, and a lookup table
+can address any pixel of any level with a single index.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import numpy as np
 
 
 def level_shapes(height: int, width: int, levels: int | None = None) -> list[tuple[int, int]]:
-    """(h, w) of every level, down to 1 x 1 or `levels` levels."""
+    """(h, w) of every level (without the border), down to 1 x 1 or `levels` levels."""
     shapes = [(height, width)]
     while (shapes[-1] != (1, 1)) and (levels is None or len(shapes) < levels):
         h, w = shapes[-1]
@@ -21,8 +23,9 @@ def level_shapes(height: int, width: int, levels: int | None = None) -> list[tup
 
 
 def level_offsets(shapes) -> np.ndarray:
-    """Row offset of each level in the flat array; the last entry is the total."""
-    return np.concatenate(([0], np.cumsum([h * w for h, w in shapes]))).astype(np.int64)
+    """Row offset of each (bordered) level in the flat array; the last entry is the total."""
+    sizes = [(h + 2) * (w + 2) for h, w in shapes]
+    return np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
 
 
 _PAIR_SUM = np.vstack((np.eye(3), np.eye(3))).astype(np.float32) * 0.25
@@ -39,21 +42,49 @@ def _halve(src: np.ndarray, dst: np.ndarray) -> None:
     rows = src[0:he:2] + src[1:he:2]  # (h//2, w, 3)
     if h % 2:
         rows = np.concatenate((rows, 2.0 * src[-1:]), axis=0)
-    pairs = np.ascontiguousarray(rows[:, :we]).reshape(-1, 6) @ _PAIR_SUM
-    dst[:, : we // 2] = pairs.reshape(rows.shape[0], we // 2, 3)
+    pairs = (
+        rows[:, :we].reshape(-1, 6)
+        if rows.flags.c_contiguous and not w % 2
+        else (np.ascontiguousarray(rows[:, :we]).reshape(-1, 6))
+    )
+    dst[:, : we // 2] = (pairs @ _PAIR_SUM).reshape(rows.shape[0], we // 2, 3)
     if w % 2:
         dst[:, -1] = 0.5 * rows[:, -1]
 
 
-def build_pyramid(plate: np.ndarray, levels: int | None = None) -> np.ndarray:
-    """The flat pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32."""
+def _fill_border(level: np.ndarray) -> None:
+    """Repeat the edge pixels of a bordered level (h + 2, w + 2, 3) into its border."""
+    level[0], level[-1] = level[1], level[-2]
+    level[:, 0], level[:, -1] = level[:, 1], level[:, -2]
+
+
+def pyramid_size(height: int, width: int, levels: int | None = None) -> int:
+    """Rows of the flat pyramid of a height x width plate."""
+    return int(level_offsets(level_shapes(height, width, levels))[-1])
+
+
+def build_pyramid(plate: np.ndarray, levels: int | None = None, out=None) -> np.ndarray:
+    """The flat bordered pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32,
+    written into `out` when given (shape (pyramid_size(H, W, levels), 3))."""
     plate = np.asarray(plate, dtype=np.float32)
     h, w = plate.shape[:2]
     shapes = level_shapes(h, w, levels)
     offsets = level_offsets(shapes)
-    flat = np.empty((int(offsets[-1]), 3), dtype=np.float32)
-    views = [flat[offsets[i] : offsets[i + 1]].reshape(sh + (3,)) for i, sh in enumerate(shapes)]
-    views[0][...] = plate
-    for src, dst in zip(views, views[1:]):
-        _halve(src, dst)
+    flat = np.empty((int(offsets[-1]), 3), dtype=np.float32) if out is None else out
+    bordered = [
+        flat[offsets[i] : offsets[i + 1]].reshape(sh[0] + 2, sh[1] + 2, 3)
+        for i, sh in enumerate(shapes)
+    ]
+    bordered[0][1:-1, 1:-1] = plate
+    for src, dst in zip(bordered, bordered[1:]):
+        _halve(src[1:-1, 1:-1], dst[1:-1, 1:-1])
+    for level in bordered:
+        _fill_border(level)
     return flat
+
+
+def level_view(flat: np.ndarray, shapes, level: int) -> np.ndarray:
+    """Level `level` of a flat pyramid as an (h, w, 3) view (without the border)."""
+    offsets = level_offsets(shapes)
+    h, w = shapes[level]
+    return flat[offsets[level] : offsets[level + 1]].reshape(h + 2, w + 2, 3)[1:-1, 1:-1]

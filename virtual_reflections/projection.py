@@ -33,22 +33,28 @@ from .segmentation import Segmentation
 
 def _split(a, at_plus, mid, at_minus):
     """Piecewise-linear map of a in [-1, 1]: -1 -> at_minus, 0 -> mid, +1 -> at_plus."""
-    return mid + np.where(a >= 0, a * (at_plus - mid), -a * (at_minus - mid))
+    return mid + a * np.where(a >= 0, at_plus - mid, mid - at_minus)
+
+
+def _lerp(a, b, t):
+    return a + t * (b - a)
 
 
 def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 0) -> np.ndarray:
     """Plate positions seen along camera-frame `directions`.
 
     directions: (..., 3) float, need not be normalised (zero vectors give the centre of X).
-    Returns (..., 2) float64 continuous plate coordinates (x right, y down, within [0, W] x
-    [0, H]); pixel (px, py) has its centre at (px + 0.5, py + 0.5).
+    Returns (..., 2) continuous plate coordinates (x right, y down, within [0, W] x [0, H]),
+    float32 for float32 input, else float64; pixel (px, py) has its centre at
+    (px + 0.5, py + 0.5).
     """
-    d = np.asarray(directions, dtype=np.float64)
+    d = np.asarray(directions)
+    dtype = np.float32 if d.dtype == np.float32 else np.float64
     shape = d.shape[:-1]
-    d = d.reshape(-1, 3)
+    d = d.reshape(-1, 3).astype(dtype, copy=False)
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
-    out = np.empty((d.shape[0], 2))
+    out = np.empty((d.shape[0], 2), dtype=dtype)
 
     X, inner = seg.x, seg.inner
     cx, cy = seg.centre
@@ -57,43 +63,44 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
     # Face choice as OpenEXR's CubeMap::faceAndPixelPosition: x wins ties, then y.
     on_x = (ax >= ay) & (ax >= az)
     on_y = ~on_x & (ay >= az)
-    on_z = ~on_x & ~on_y
+    on_z = ~(on_x | on_y)
+    back = on_z & (z > 0)
 
     with np.errstate(divide="ignore", invalid="ignore"):
         # Back face (+Z): region X.
-        m = on_z & (z > 0)
-        h, w = x[m] / z[m], y[m] / z[m]
-        out[m, 0] = _split(h, X.x0, cx, X.x1)
-        out[m, 1] = _split(w, X.y0, cy, X.y1)
+        idx = np.flatnonzero(back)
+        r = 1 / z[idx]
+        out[idx, 0] = _split(x[idx] * r, X.x0, cx, X.x1)
+        out[idx, 1] = _split(y[idx] * r, X.y0, cy, X.y1)
 
-        # Left / right faces (+X / -X): regions L and R.
-        m = on_x & (ax > 0)
-        s = np.sign(x[m])
-        w, t = y[m] / ax[m], 0.5 * (1.0 - z[m] / ax[m])
-        edge_x, edge_i = np.where(s > 0, X.x0, X.x1), np.where(s > 0, inner.x0, inner.x1)
-        out[m, 0] = edge_x + t * (edge_i - edge_x)
-        out[m, 1] = (1 - t) * _split(w, X.y0, cy, X.y1) + t * _split(w, inner.y0, cy, inner.y1)
+        # Left / right faces (+X / -X): regions L and R. t: 0 at the back edge, 1 at the front.
+        idx = np.flatnonzero(on_x & (ax > 0))
+        r = 1 / ax[idx]
+        left = x[idx] > 0
+        w, t = y[idx] * r, 0.5 - 0.5 * z[idx] * r
+        out[idx, 0] = _lerp(np.where(left, X.x0, X.x1), np.where(left, inner.x0, inner.x1), t)
+        out[idx, 1] = _lerp(_split(w, X.y0, cy, X.y1), _split(w, inner.y0, cy, inner.y1), t)
 
         # Top / bottom faces (+Y / -Y): regions T and B.
-        m = on_y
-        s = np.sign(y[m])
-        h, t = x[m] / ay[m], 0.5 * (1.0 - z[m] / ay[m])
-        edge_x, edge_i = np.where(s > 0, X.y0, X.y1), np.where(s > 0, inner.y0, inner.y1)
-        out[m, 1] = edge_x + t * (edge_i - edge_x)
-        out[m, 0] = (1 - t) * _split(h, X.x0, cx, X.x1) + t * _split(h, inner.x0, cx, inner.x1)
+        idx = np.flatnonzero(on_y)
+        r = 1 / ay[idx]
+        top = y[idx] > 0
+        h, t = x[idx] * r, 0.5 - 0.5 * z[idx] * r
+        out[idx, 1] = _lerp(np.where(top, X.y0, X.y1), np.where(top, inner.y0, inner.y1), t)
+        out[idx, 0] = _lerp(_split(h, X.x0, cx, X.x1), _split(h, inner.x0, cx, inner.x1), t)
 
         # Front face (-Z): the ring F, four triangles with inverted orientation.
-        m = on_z & ~(z > 0)
-        h, w = x[m] / az[m], y[m] / az[m]
+        idx = np.flatnonzero(on_z & ~back)
+        r = 1 / az[idx]
+        h, w = x[idx] * r, y[idx] * r
         horiz = np.abs(h) >= np.abs(w)  # in F'_L or F'_R, else F'_T or F'_B
         major = np.where(horiz, h, w)
-        r = 1.0 - np.abs(major)  # 0 on the cube edge, 1 at the face centre
-        s = np.where(horiz, w, h) / np.abs(major)  # along the base, in [-1, 1]
-        s = np.nan_to_num(s, nan=0.0, posinf=1.0, neginf=-1.0)
+        rad = 1.0 - np.abs(major)  # 0 on the cube edge, 1 at the face centre
+        s = np.nan_to_num(np.where(horiz, w, h) / np.abs(major), nan=0.0, posinf=1.0, neginf=-1.0)
         if triangles:
             k = triangles // 4
-            i = np.clip(np.floor((s + 1.0) * 0.5 * k), 0, k - 1)
-            apex_s = -1.0 + (2.0 * i + 1.0) / k
+            i = np.clip(np.floor((s + 1.0) * (0.5 * k)), 0, k - 1)
+            apex_s = (2.0 * i + 1.0) / k - 1.0
         else:
             apex_s = s
         plus = major > 0  # toward +X (left) or +Y (top)
@@ -101,19 +108,17 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
         base_fixed = np.where(
             horiz, np.where(plus, inner.x0, inner.x1), np.where(plus, inner.y0, inner.y1)
         )
-        apex_fixed = np.where(horiz, np.where(plus, 0.0, W), np.where(plus, 0.0, H))
+        apex_fixed = np.where(plus, 0.0, np.where(horiz, W, H))
         base_along = np.where(
             horiz, _split(s, inner.y0, cy, inner.y1), _split(s, inner.x0, cx, inner.x1)
         )
         apex_along = np.where(horiz, _split(apex_s, 0.0, cy, H), _split(apex_s, 0.0, cx, W))
-        fixed = (1 - r) * base_fixed + r * apex_fixed
-        along = (1 - r) * base_along + r * apex_along
-        out[m, 0] = np.where(horiz, fixed, along)
-        out[m, 1] = np.where(horiz, along, fixed)
+        fixed = _lerp(base_fixed, apex_fixed, rad)
+        along = _lerp(base_along, apex_along, rad)
+        out[idx, 0] = np.where(horiz, fixed, along)
+        out[idx, 1] = np.where(horiz, along, fixed)
 
     # The zero vector (no face): the centre of X.
-    zero = (ax == 0) & (ay == 0) & (az == 0)
-    out[zero] = (cx, cy)
-    np.clip(out[:, 0], 0.0, W, out=out[:, 0])
-    np.clip(out[:, 1], 0.0, H, out=out[:, 1])
+    out[(ax == 0) & (ay == 0) & (az == 0)] = (cx, cy)
+    np.clip(out, 0.0, (W, H), out=out)
     return out.reshape(shape + (2,))

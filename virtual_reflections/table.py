@@ -14,7 +14,8 @@ face's centre in the continuous limit) each texel averages the area it covers.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from .segmentation import Segmentation, segment
 class LookupTable:
     """Texel -> weighted pyramid pixels for one plate size, segmentation and map layout.
 
-    index:  (T, 8) intp rows of the flat pyramid (see mipmap.py), T = map height * width.
+    index:  (T, 8) intp rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
     weight: (T, 8) float32, rows sum to 1.
     shape:  (H, W) of the map; `levels` pyramid levels are needed.
     """
@@ -41,34 +42,44 @@ class LookupTable:
     levels: int
     index: np.ndarray
     weight: np.ndarray
-    position: np.ndarray  # (H, W, 2) plate position of each texel centre, for inspection
+    position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
     lod: np.ndarray  # (H, W) float32 mip level of each texel
+    _scratch: dict = field(default_factory=dict, repr=False)  # per-thread reusable buffers
+
+    def scratch(self, name: str, shape: tuple, dtype=np.float32) -> np.ndarray:
+        """A buffer reused across applies by the calling thread (no page faults per frame)."""
+        key = (threading.get_ident(), name)
+        buf = self._scratch.get(key)
+        if buf is None or buf.shape != shape:
+            buf = self._scratch[key] = np.empty(shape, dtype)
+        return buf
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
-    """Distance on the plate to the nearer neighbour texel along `axis`, per texel.
+    """Squared distance on the plate to the nearer neighbour texel along `axis`, per texel.
 
     q: (H, W, 2) positions. Taking the nearer of the two neighbours keeps a texel next to a
     discontinuity (the seams between the paper's front-face triangles) from being blurred
     across it. `block` > 0 cuts the axis into blocks (cube faces) with no neighbours across.
     """
     n = q.shape[axis]
-    step = np.hypot(*np.moveaxis(np.diff(q, axis=axis), -1, 0))  # (n-1) along axis
-    if wrap:
-        first = np.take(q, [0], axis=axis) - np.take(q, [n - 1], axis=axis)
-        seam = np.hypot(*np.moveaxis(first, -1, 0))
-        ahead = np.concatenate((step, seam), axis=axis)
-        behind = np.concatenate((seam, step), axis=axis)
-    else:
-        pad = np.full_like(np.take(step, [0], axis=axis), np.inf)
-        ahead = np.concatenate((step, pad), axis=axis)
-        behind = np.concatenate((pad, step), axis=axis)
-        if block:
-            cut = np.arange(n)
-            ahead = np.where(_along(cut % block == block - 1, axis, q.ndim - 1), np.inf, ahead)
-            behind = np.where(_along(cut % block == 0, axis, q.ndim - 1), np.inf, behind)
+    diff = np.diff(q, axis=axis, append=np.take(q, [0], axis=axis))  # last: wrap-around step
+    step = np.einsum("...i,...i->...", diff, diff)  # (H, W): squared step to the next texel
+    ahead = step
+    behind = np.roll(step, 1, axis=axis)
+    last = [slice(None)] * step.ndim
+    if not wrap:
+        last[axis] = slice(n - 1, n)
+        ahead[tuple(last)] = np.inf
+        last[axis] = slice(0, 1)
+        behind[tuple(last)] = np.inf
+    if block:
+        cut = np.arange(n)
+        ahead = np.where(_along(cut % block == block - 1, axis, step.ndim), np.inf, ahead)
+        behind = np.where(_along(cut % block == 0, axis, step.ndim), np.inf, behind)
     span = np.minimum(ahead, behind)
-    return np.where(np.isfinite(span), span, 0.0)
+    span[~np.isfinite(span)] = 0.0
+    return span
 
 
 def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
@@ -77,52 +88,60 @@ def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
     return mask.reshape(shape)
 
 
-def _footprint(layout: str, size: int, position: np.ndarray) -> np.ndarray:
-    """Plate pixels covered by one texel: (H, W) float64, from neighbouring texels."""
+def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
+    """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32."""
     latlong = layout == "latlong"
     across = _spans(position, 1, wrap=latlong, block=0)
     down = _spans(position, 0, wrap=False, block=0 if latlong else size)
-    return np.maximum(across, down)
+    squared = np.maximum(np.maximum(across, down), 1e-12)
+    return 0.5 * np.log2(squared, dtype=np.float32)
 
 
-def _bilinear(px, py, lo, shapes, offsets):
-    """Bilinear taps at level-0 positions (px, py) on mip levels lo and lo + 1.
+def _bilinear(px, py, lod, shapes, offsets):
+    """Trilinear taps: bilinear at level-0 positions (px, py) on mip levels floor(lod) and
+    the next one, blended by the fraction of lod.
 
-    Returns index (T, 2, 4) intp and weight (T, 2, 4) float32 (unblended)."""
-    level = np.minimum(lo[:, None] + np.arange(2), len(shapes) - 1)  # (T, 2)
-    h = np.array([s[0] for s in shapes], dtype=np.intp)[level]
-    w = np.array([s[1] for s in shapes], dtype=np.intp)[level]
-    scale = np.exp2(-level.astype(np.float32))
-    fx, fy = px[:, None] * scale - 0.5, py[:, None] * scale - 0.5
+    Returns index (T, 8) intp and weight (T, 8) float32 rows summing to 1. The pyramid's
+    border (mipmap.py) makes clamping unnecessary: positions lie in [0, W] x [0, H].
+    """
+    top = len(shapes) - 1
+    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
+    level = np.minimum(lo[:, None] + np.arange(2, dtype=np.int32), top)  # (T, 2)
+    share = np.empty(level.shape, np.float32)  # weight of each level
+    share[:, 1] = np.clip(lod - lo, 0.0, 1.0)
+    share[:, 0] = 1.0 - share[:, 1]
+    stride = np.array([s[1] + 2 for s in shapes], dtype=np.int32)[level]
+    scale = np.array([2.0**-i for i in range(top + 1)], dtype=np.float32)[level]
+    fx = px[:, None] * scale + 0.5  # +1 for the border, -0.5 to pixel centres
+    fy = py[:, None] * scale + 0.5
     x0, y0 = np.floor(fx), np.floor(fy)
     ax, ay = fx - x0, fy - y0
-    x0, y0 = x0.astype(np.intp), y0.astype(np.intp)
-    xa, xb = np.clip(x0, 0, w - 1), np.clip(x0 + 1, 0, w - 1)
-    row_a = offsets[level] + np.clip(y0, 0, h - 1) * w
-    row_b = offsets[level] + np.clip(y0 + 1, 0, h - 1) * w
-    index = np.stack((row_a + xa, row_a + xb, row_b + xa, row_b + xb), -1)
-    bx, by = 1 - ax, 1 - ay
-    weight = np.stack((bx * by, ax * by, bx * ay, ax * ay), -1)
-    return index, weight
+    base = offsets.astype(np.int64)[level] + (y0.astype(np.int64) * stride + x0.astype(np.int64))
+    index = np.empty(base.shape + (4,), dtype=np.intp)
+    index[..., 0] = base
+    index[..., 1] = base + 1
+    index[..., 2] = base + stride
+    index[..., 3] = index[..., 2] + 1
+    weight = np.empty(base.shape + (4,), dtype=np.float32)
+    bx, by = share - share * ax, 1 - ay  # the level's share folded into x
+    ax *= share
+    np.multiply(bx, by, out=weight[..., 0])
+    np.multiply(ax, by, out=weight[..., 1])
+    np.multiply(bx, ay, out=weight[..., 2])
+    np.multiply(ax, ay, out=weight[..., 3])
+    return index.reshape(-1, 8), weight.reshape(-1, 8)
 
 
 def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -> LookupTable:
     """Build the table for a segmentation (uncached; see `lookup_table`)."""
     shape = map_shape(layout, size)
-    position = plate_positions(texel_directions(layout, size), seg, triangles)
-    footprint = _footprint(layout, size, position)
+    directions = texel_directions(layout, size).astype(np.float32)
+    position = plate_positions(directions, seg, triangles)  # (H, W, 2) float32
     shapes = level_shapes(seg.height, seg.width)
-    offsets = level_offsets(shapes)
     top = len(shapes) - 1
-    lod = np.clip(np.log2(np.maximum(footprint, 1e-12)), 0.0, top).astype(np.float32).ravel()
-    lo = np.minimum(lod.astype(np.intp), max(top - 1, 0))
-    blend = lod - lo
-    px = position[..., 0].astype(np.float32).ravel()
-    py = position[..., 1].astype(np.float32).ravel()
-    index, weight = _bilinear(px, py, lo, shapes, offsets)
-    weight[:, 0] *= (1 - blend)[:, None]
-    weight[:, 1] *= blend[:, None]
-    index, weight = index.reshape(-1, 8), weight.reshape(-1, 8)
+    lod = np.clip(_lod(layout, size, position), 0.0, top).ravel()
+    px, py = position[..., 0].ravel(), position[..., 1].ravel()
+    index, weight = _bilinear(px, py, lod, shapes, level_offsets(shapes))
     for a in (index, weight, position, lod):
         a.flags.writeable = False
     return LookupTable(
@@ -130,7 +149,7 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
         layout=layout,
         size=size,
         shape=shape,
-        levels=min(int(lo.max()) + 2, top + 1),
+        levels=min(int(lod.max()) + 2, top + 1),
         index=index,
         weight=weight,
         position=position,

@@ -45,3 +45,9 @@ def addon(clean_file):
         yield module
     finally:
         module.unregister()
+
+
+@pytest.fixture
+def addon_module(clean_file):
+    """The extension package, imported but not registered."""
+    return load_addon()

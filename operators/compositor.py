@@ -1,0 +1,440 @@
+"""The plate in Blender: read its pixels, set the scene up to render over it, composite.
+
+Pure functions; the operators wrap them.
+
+Colour: every array here is scene-linear Rec.709 float32 unless it says otherwise. A byte
+(8-bit) image's ``pixels`` are the file's sRGB-encoded values / 255 (Blender does not convert
+them), so they are decoded with the sRGB EOTF; a float image's ``pixels`` (EXR, HDR, and 16-bit
+PNG/TIFF, which Blender loads into a float buffer) are already converted to the scene-linear
+working space on load. Pixel rows: Blender stores them bottom-up; arrays here are top row first
+(CONVENTIONS.md, "Plate pixels").
+
+The compositor API changed in Blender 5.0, and `setup_from_plate` handles both:
+
+- 4.5: the scene owns an embedded tree, ``scene.node_tree``, switched on by ``scene.use_nodes``;
+  the result is the Composite node. Our nodes (named "VR ...") are added to the user's tree and
+  the Composite input is routed through our Alpha Over.
+- 5.x: the compositor is a node-group datablock (type 'CompositorNodeTree') assigned to
+  ``scene.compositing_node_group``; there is no Composite node, the result is the first Image
+  input of the active Group Output; ``scene.use_nodes`` is deprecated and ignored. We assign our
+  own group "VR Composite"; the user's previous group (if any) is nested in it as a group node
+  whose output is the foreground, so their node setup keeps working underneath the plate. Our
+  group always has a top-level Render Layers node: Blender renders the scene for the compositor
+  only when one is there (nested ones do not count).
+  Alpha Over's inputs are named Background / Foreground there (4.5: Image / Image_001).
+
+Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
+`undo_setup_from_plate` restores it and removes only what setup added.
+"""
+
+import json
+import os
+
+import bpy
+import numpy as np
+
+from ..virtual_reflections.colour import clean_plate, decode_uint
+
+RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
+CREATED = "vr_created"  # on the node group this module made (5.x)
+GROUP_NAME = "VR Composite"
+PREFIX = "VR "  # every node this module adds is named with it
+
+_NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
+_DATA_SPACES = {"Non-Color", "Raw"}  # colour spaces whose values are data, used as is
+
+
+# --- plate pixels ------------------------------------------------------------------------------
+
+
+def _disk_path(image):
+    """The absolute path an image reads its pixels from, or None (packed, generated, ...)."""
+    if image.source not in {"FILE", "SEQUENCE", "MOVIE"} or not image.filepath:
+        return None
+    if image.packed_file is not None or len(image.packed_files):
+        return None
+    return os.path.normpath(bpy.path.abspath(image.filepath, library=image.library))
+
+
+def _loaded_size(image) -> tuple[int, int]:
+    """Load `image` if needed and return its (width, height); ValueError when it has no pixels.
+
+    A missing file is checked before anything touches the pixels: Blender would otherwise
+    carry on with an empty (or, in the UI, pink placeholder) buffer.
+    """
+    if image is None:
+        raise ValueError("No plate image: choose an image (or a camera background image)")
+    path = _disk_path(image)
+    if path is not None and not os.path.exists(path):
+        raise ValueError(f"Plate image '{image.name}': file not found: {path}")
+    width, height = image.size  # loads the file on first access
+    if not image.has_data:  # nothing in memory, so reload() loses nothing
+        image.reload()
+        width, height = image.size
+    if not image.has_data:
+        if path is not None:
+            raise ValueError(
+                f"Plate image '{image.name}' could not be loaded from {path} "
+                "(unsupported or damaged file)"
+            )
+        raise ValueError(f"Plate image '{image.name}' has no pixels ({width}x{height})")
+    if width == 0 or height == 0:
+        raise ValueError(f"Plate image '{image.name}' has no pixels ({width}x{height})")
+    return width, height
+
+
+def plate_image_pixels(image) -> tuple[np.ndarray, str]:
+    """A Blender image's pixels -> ((H, W, 3) float32 scene-linear Rec.709, top row first; info).
+
+    Byte images are decoded from sRGB (128 -> 0.216); float images are used as they are
+    (Blender made them scene-linear on load); images whose colour space is data (Non-Color/Raw)
+    are used as is, and so are byte images in a linear space; other byte spaces are decoded as
+    sRGB and the info says so. Alpha is ignored. NaN/Inf values are replaced
+    (`colour.clean_plate`) and counted in the info. Movies and sequences give the frame Blender
+    has loaded for the image (its current frame; no image-user frame mapping here).
+
+    Raises ValueError (one line, naming the image or file) for: no image, a file missing on
+    disk, a file Blender cannot load, an image without pixels (0x0).
+    """
+    width, height = _loaded_size(image)
+    count = len(image.pixels)
+    channels = count // (width * height)
+    if channels < 1 or channels * width * height != count:
+        raise ValueError(
+            f"Plate image '{image.name}': {count} pixel values do not fit {width}x{height}"
+        )
+    buffer = np.empty(count, dtype=np.float32)
+    image.pixels.foreach_get(buffer)
+    rows = buffer.reshape(height, width, channels)[::-1, :, :3]  # bottom-up -> top row first
+
+    space = image.colorspace_settings.name
+    is_data = image.colorspace_settings.is_data or space in _DATA_SPACES
+    notes = [f"Plate '{image.name}' {width}x{height}"]
+    if image.is_float:
+        linear = rows
+        if is_data:
+            notes.append(f"float, colour space {space} (data): used as is")
+        else:
+            notes.append("float, scene-linear as loaded")
+            working = _working_space()
+            if working not in (None, "Linear Rec.709"):
+                notes.append(f"note: the file's working space is {working}, not Linear Rec.709")
+    elif is_data or space.startswith("Linear"):
+        linear = rows
+        notes.append(f"8-bit, colour space {space}: used as is (not sRGB-decoded)")
+    else:
+        # Byte pixels are exactly k / 255: decode through the table of srgb_to_linear(k / 255),
+        # ~4x faster than the power law on a 4K plate.
+        codes = np.rint(np.multiply(buffer, 255.0, out=buffer), out=buffer).astype(np.uint8)
+        linear = decode_uint(codes.reshape(height, width, channels)[::-1, :, :3])
+        if space == "sRGB":
+            notes.append("8-bit sRGB, decoded to scene-linear")
+        else:
+            notes.append(f"8-bit, colour space {space} is not sRGB: decoded as sRGB anyway")
+    if image.source in {"MOVIE", "SEQUENCE"}:
+        notes.append(f"{image.source.lower()}: the frame currently loaded")
+    cleaned = clean_plate(linear)
+    if cleaned.nonfinite:
+        notes.append(f"{cleaned.nonfinite} NaN/Inf values replaced")
+    return cleaned.pixels, "; ".join(notes)
+
+
+def _working_space():
+    """The blend file's scene-linear working space (5.x: per file); None where fixed (4.5)."""
+    settings = getattr(bpy.data, "colorspace", None)
+    return getattr(settings, "working_space", None) if settings is not None else None
+
+
+def scene_plate(scene):
+    """The plate of a scene: ``scene.virtual_reflections.plate_image`` when set, else the first
+    shown IMAGE background image of the active camera. Returns a bpy Image or None."""
+    settings = getattr(scene, "virtual_reflections", None)
+    image = getattr(settings, "plate_image", None)
+    if image is not None:
+        return image
+    camera = scene.camera
+    if camera is None or camera.type != "CAMERA":
+        return None
+    for background in camera.data.background_images:
+        if background.source == "IMAGE" and background.image and background.show_background_image:
+            return background.image
+    return None
+
+
+# --- compositing in NumPy ----------------------------------------------------------------------
+
+
+def composite_over_plate(render_rgba: np.ndarray, plate: np.ndarray) -> np.ndarray:
+    """Alpha-over: (H, W, 4) premultiplied render over an (H, W, 3) plate -> (H, W, 3) float32.
+
+    All scene-linear: ``render.rgb + plate * (1 - render.alpha)``, what Blender's Alpha Over node
+    computes for a premultiplied foreground (its default) at factor 1.
+    """
+    render = np.asarray(render_rgba, dtype=np.float32)
+    back = np.asarray(plate, dtype=np.float32)
+    if render.ndim != 3 or render.shape[2] != 4:
+        raise ValueError(f"the render must be (H, W, 4) RGBA, got shape {render.shape}")
+    if back.ndim != 3 or back.shape[2] != 3 or back.shape[:2] != render.shape[:2]:
+        raise ValueError(f"the plate must be (H, W, 3) like the render, got shape {back.shape}")
+    out = back * (1.0 - render[..., 3:4])
+    out += render[..., :3]
+    return out
+
+
+# --- scene setup -------------------------------------------------------------------------------
+
+
+def setup_from_plate(scene, image) -> dict:
+    """Set `scene` up to render over the plate `image`; returns the record of what changed.
+
+    Render size = the plate's (100 %), pixel aspect 1, transparent film, compositing on; the plate
+    shown as the scene camera's background image (an existing entry for it is reused; skipped
+    without a camera); the compositor puts the render over the plate (Image -> Alpha Over
+    background, the render -> foreground -> output, and a Viewer). Nothing of the user's is
+    deleted. Calling it again first undoes the previous setup, so nothing stacks and
+    `undo_setup_from_plate` still returns to the state before the first call.
+    """
+    width, height = _loaded_size(image)
+    if RECORD in scene:
+        undo_setup_from_plate(scene)
+    render = scene.render
+    record = {
+        "version": 1,
+        "api": "compositing_node_group" if _NODE_GROUPS else "node_tree",
+        "image": image.name,
+        "resolution": [render.resolution_x, render.resolution_y, render.resolution_percentage],
+        "pixel_aspect": [render.pixel_aspect_x, render.pixel_aspect_y],
+        "film_transparent": render.film_transparent,
+        "use_compositing": render.use_compositing,
+    }
+    render.resolution_x, render.resolution_y, render.resolution_percentage = width, height, 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.film_transparent = True
+    render.use_compositing = True
+    record["camera"] = _show_background(scene.camera, image)
+    if _NODE_GROUPS:
+        record["compositor"] = _setup_group(scene, image)
+    else:
+        record["compositor"] = _setup_tree(scene, image)
+    scene[RECORD] = json.dumps(record)
+    return record
+
+
+def undo_setup_from_plate(scene) -> bool:
+    """Restore what `setup_from_plate` changed on `scene`; False if there is nothing to undo.
+
+    Removes only what setup added (nodes, the group, the background entry). In 4.5 the scene's
+    embedded tree stays once created (it cannot be deleted); with ``use_nodes`` restored it is
+    inert. A record written by the other compositor API (a file set up in 4.5, undone in 5.x or
+    the reverse) restores everything except the compositor.
+    """
+    if RECORD not in scene:
+        return False
+    record = json.loads(scene[RECORD])
+    render = scene.render
+    render.resolution_x, render.resolution_y, render.resolution_percentage = record["resolution"]
+    render.pixel_aspect_x, render.pixel_aspect_y = record["pixel_aspect"]
+    render.film_transparent = record["film_transparent"]
+    render.use_compositing = record["use_compositing"]
+    _undo_background(record["camera"], record["image"])
+    api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
+    if record["api"] == api:
+        if _NODE_GROUPS:
+            _undo_group(scene, record["compositor"])
+        else:
+            _undo_tree(scene, record["compositor"])
+    del scene[RECORD]
+    return True
+
+
+def _show_background(camera, image):
+    """Show `image` as the camera's background; returns the record (None without a camera)."""
+    if camera is None or camera.type != "CAMERA":
+        return None
+    data = camera.data
+    entry = next((b for b in data.background_images if b.image == image), None)
+    record = {
+        "object": camera.name,
+        "data": data.name,
+        "show_background_images": data.show_background_images,
+        "added": entry is None,
+    }
+    if entry is None:
+        entry = data.background_images.new()
+        entry.source = "IMAGE"
+        entry.image = image
+    else:
+        record["entry"] = {"show_background_image": entry.show_background_image}
+    entry.show_background_image = True
+    data.show_background_images = True
+    return record
+
+
+def _undo_background(record, image_name):
+    if record is None:
+        return
+    data = bpy.data.cameras.get(record["data"])
+    if data is None:
+        return
+    data.show_background_images = record["show_background_images"]
+    entries = [b for b in data.background_images if b.image and b.image.name == image_name]
+    if not entries:
+        return
+    if record["added"]:
+        entry = entries[-1]  # setup appended it: the last one
+        entry.image = None  # removing the entry alone leaves the image's user count raised
+        data.background_images.remove(entry)
+    else:
+        entries[0].show_background_image = record["entry"]["show_background_image"]
+
+
+def _new_node(tree, kind, name, location):
+    node = tree.nodes.new(kind)
+    node.name = node.label = PREFIX + name
+    node.location = location
+    return node
+
+
+def _plate_node(tree, image, location):
+    node = _new_node(tree, "CompositorNodeImage", "Plate", location)
+    node.image = image
+    if image.source in {"MOVIE", "SEQUENCE"}:  # simple: the clip from frame 1, auto-refreshed
+        node.frame_duration = image.frame_duration
+        node.use_auto_refresh = True
+    return node
+
+
+# 4.5: scene.node_tree with a Composite node.
+
+
+def _setup_tree(scene, image):
+    record = {
+        "use_nodes": scene.use_nodes,
+        "had_tree": scene.node_tree is not None,
+        # Adding a Viewer creates Blender's "Viewer Node" image if there is none.
+        "had_viewer_image": any(i.type == "COMPOSITING" for i in bpy.data.images),
+    }
+    scene.use_nodes = True  # creates the default tree (Render Layers -> Composite) if none
+    tree = scene.node_tree
+    record["active"] = tree.nodes.active.name if tree.nodes.active else None
+    added = []
+    composite = next((n for n in tree.nodes if n.type == "COMPOSITE" and not n.mute), None)
+    if composite is None:
+        composite = _new_node(tree, "CompositorNodeComposite", "Composite", (600, 0))
+        added.append(composite.name)
+    x, y = composite.location
+    target = composite.inputs[0]
+    previous = target.links[0].from_socket if target.is_linked else None
+    record["composite"] = composite.name
+    record["previous_link"] = (
+        [previous.node.name, previous.identifier] if previous is not None else None
+    )
+    if previous is None:  # nothing fed the Composite: our own Render Layers is the foreground
+        layers = _new_node(tree, "CompositorNodeRLayers", "Render Layers", (x - 600, y - 150))
+        layers.scene = scene
+        added.append(layers.name)
+        previous = layers.outputs["Image"]
+    plate = _plate_node(tree, image, (x - 600, y + 250))
+    over = _new_node(tree, "CompositorNodeAlphaOver", "Alpha Over", (x - 250, y + 100))
+    viewer = _new_node(tree, "CompositorNodeViewer", "Viewer", (x, y + 250))
+    added += [plate.name, over.name, viewer.name]
+    # 4.5 Alpha Over sockets: Fac, Image (background), Image_001 (foreground).
+    background, foreground = _input(over, "Image"), _input(over, "Image_001")
+    tree.links.new(plate.outputs["Image"], background)
+    tree.links.new(previous, foreground)
+    tree.links.new(over.outputs["Image"], target)  # replaces the previous link
+    tree.links.new(over.outputs["Image"], viewer.inputs["Image"])
+    tree.nodes.active = viewer  # the active Viewer is the one Blender shows
+    record["added"] = added
+    return record
+
+
+def _input(node, identifier):
+    return next(s for s in node.inputs if s.identifier == identifier)
+
+
+def _undo_tree(scene, record):
+    tree = scene.node_tree
+    if tree is not None:
+        composite = tree.nodes.get(record["composite"])
+        previous = record["previous_link"]
+        if composite is not None and previous is not None and _fed_by_us(composite.inputs[0]):
+            node = tree.nodes.get(previous[0])
+            outputs = node.outputs if node is not None else ()
+            socket = next((s for s in outputs if s.identifier == previous[1]), None)
+            if socket is not None:
+                tree.links.new(socket, composite.inputs[0])
+        for name in record["added"]:
+            node = tree.nodes.get(name)
+            if node is not None:
+                tree.nodes.remove(node)
+        active = tree.nodes.get(record["active"]) if record["active"] else None
+        if active is not None:
+            tree.nodes.active = active
+    scene.use_nodes = record["use_nodes"]
+    if not record["had_viewer_image"] and not _viewers_left():
+        for image in [i for i in bpy.data.images if i.type == "COMPOSITING"]:
+            bpy.data.images.remove(image)
+
+
+def _fed_by_us(socket):
+    """True unless the user has linked something else into `socket` since the setup."""
+    return not socket.is_linked or socket.links[0].from_node.name.startswith(PREFIX)
+
+
+def _viewers_left():
+    trees = [s.node_tree for s in bpy.data.scenes if s.node_tree is not None]
+    trees += list(bpy.data.node_groups)
+    return any(n.type == "VIEWER" for t in trees for n in t.nodes)
+
+
+# 5.x: scene.compositing_node_group, a node group whose Group Output is the result.
+
+
+def _setup_group(scene, image):
+    previous = scene.compositing_node_group
+    group = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+    group[CREATED] = "compositor"
+    group.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    output = group.nodes.new("NodeGroupOutput")
+    output.location = (600, 0)
+    # Blender renders the scene for the compositor only if the scene's compositor group has a
+    # Render Layers node for it at its top level (render pipeline, compositor_needs_render():
+    # nested groups are not searched), so ours is always there, even when the nested user
+    # group's own Render Layers provides the foreground.
+    layers = _new_node(group, "CompositorNodeRLayers", "Render Layers", (0, -150))
+    layers.scene = scene
+    foreground = layers.outputs["Image"]
+    result = _image_output(previous) if previous is not None else None
+    if result is not None:
+        # The user's compositor, nested: its result is what goes over the plate.
+        user = _new_node(group, "CompositorNodeGroup", "Previous Compositor", (0, -350))
+        user.node_tree = previous
+        foreground = next(s for s in user.outputs if s.identifier == result)
+    plate = _plate_node(group, image, (0, 250))
+    over = _new_node(group, "CompositorNodeAlphaOver", "Alpha Over", (350, 100))
+    viewer = _new_node(group, "CompositorNodeViewer", "Viewer", (600, 250))
+    group.links.new(plate.outputs["Image"], over.inputs["Background"])
+    group.links.new(foreground, over.inputs["Foreground"])
+    group.links.new(over.outputs["Image"], output.inputs[0])
+    group.links.new(over.outputs["Image"], viewer.inputs["Image"])
+    scene.compositing_node_group = group
+    return {"previous_group": previous.name if previous else None, "group": group.name}
+
+
+def _image_output(group):
+    """The identifier of a group's result (its first colour output, as the compositor uses)."""
+    for item in group.interface.items_tree:
+        if item.item_type == "SOCKET" and item.in_out == "OUTPUT":
+            if item.socket_type == "NodeSocketColor":
+                return item.identifier
+    return None
+
+
+def _undo_group(scene, record):
+    previous = record["previous_group"]
+    group = bpy.data.node_groups.get(record["group"])
+    if scene.compositing_node_group in (group, None):  # else the user has chosen another since
+        scene.compositing_node_group = bpy.data.node_groups.get(previous) if previous else None
+    if group is not None and group.get(CREATED) == "compositor":
+        bpy.data.node_groups.remove(group)

@@ -1,0 +1,203 @@
+"""Generate / Remove on real scenes: datablocks, renders, restoration, undo and bad input."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+
+def make_scene(width=64, height=48):
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, -6.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looks along +Y, Z up
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 4
+    scene.cycles.device = "CPU"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    return scene
+
+
+def add_sphere(name="Ball", location=(0, 0, 0), material=True):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=32, ring_count=16, location=location)
+    obj = bpy.context.active_object
+    obj.name = name
+    bpy.ops.object.shade_smooth()
+    if material:
+        mat = bpy.data.materials.new(f"{name} paint")
+        if not mat.node_tree:
+            mat.use_nodes = True
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        bsdf.inputs["Base Color"].default_value = (0.8, 0.6, 0.2, 1.0)
+        obj.data.materials.append(mat)
+    return obj
+
+
+def red_blue_plate(width=64, height=48):
+    """Left half red, right half blue (scene-linear float image)."""
+    image = bpy.data.images.new("Plate", width, height, alpha=False, float_buffer=True)
+    px = np.zeros((height, width, 4), np.float32)
+    px[..., 3] = 1
+    px[:, : width // 2, 0] = 1.0
+    px[:, width // 2 :, 2] = 1.0
+    image.pixels.foreach_set(px[::-1].ravel())
+    image.pack()
+    return image
+
+
+def render(scene, tmp_path, name="r"):
+    path = str(tmp_path / f"{name}.exr")
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.filepath = path
+    scene.render.film_transparent = True
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path)
+    w, h = img.size
+    buf = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(buf)
+    bpy.data.images.remove(img)
+    return buf.reshape(h, w, 4)[::-1]
+
+
+def signature(mat):
+    from vr_addon_under_test.operators import shading
+
+    return shading.node_tree_signature(mat.node_tree) if mat and mat.node_tree else None
+
+
+def test_register_unregister_leaves_nothing(addon_module):
+    before = set(dir(bpy.types))
+    module = addon_module
+    module.register()
+    assert hasattr(bpy.types.Scene, "virtual_reflections") and hasattr(bpy.ops.vr, "generate")
+    module.unregister()
+    assert not hasattr(bpy.types.Scene, "virtual_reflections")
+    assert not hasattr(bpy.types.Object, "virtual_reflections")
+    assert set(dir(bpy.types)) == before
+
+
+def test_generate_builds_maps_and_nodes(addon):
+    scene = make_scene()
+    ball = add_sphere()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.resolution = "256"
+    original = signature(ball.data.materials[0])
+    bpy.ops.object.select_all(action="DESELECT")
+    ball.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    image = bpy.data.images["VR Map Ball"]
+    assert tuple(image.size) == (256, 128) and image.is_float and image.packed_file
+    slot = ball.material_slots[0]
+    assert slot.link == "OBJECT" and slot.material is not ball.data.materials[0]
+    assert any(n.type == "GROUP" for n in slot.material.node_tree.nodes)
+    assert signature(ball.data.materials[0]) == original  # the user's material untouched
+    assert "ms" in scene.virtual_reflections.last_report
+    # Regenerating updates the same image in place.
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    assert [i.name for i in bpy.data.images if i.name.startswith("VR Map")] == ["VR Map Ball"]
+
+
+def test_chrome_sphere_shows_the_plate_on_the_correct_sides(addon, tmp_path):
+    scene = make_scene()
+    ball = add_sphere()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.combine = "REPLACE"
+    scene.virtual_reflections.resolution = "256"
+    ball.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    rgba = render(scene, tmp_path)
+    alpha = rgba[..., 3] > 0.99
+    cols = np.nonzero(alpha.any(0))[0]
+    mid = (cols[0] + cols[-1]) / 2
+    left = rgba[:, : int(mid) - 2][alpha[:, : int(mid) - 2]]
+    right = rgba[:, int(mid) + 3 :][alpha[:, int(mid) + 3 :]]
+    assert left[:, 0].mean() > 0.7 and left[:, 2].mean() < 0.2
+    assert right[:, 2].mean() > 0.7 and right[:, 0].mean() < 0.2
+
+
+@pytest.mark.parametrize("mode", ["REPLACE", "MODULATE", "MIX", "WORLD"])
+def test_remove_restores_everything(addon, mode):
+    scene = make_scene()
+    ball = add_sphere()
+    plain = add_sphere("Plain", location=(2.5, 0, 0), material=False)
+    world = bpy.data.worlds.new("User World")
+    scene.world = world
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.combine = mode
+    scene.virtual_reflections.resolution = "256"
+    before = {
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "worlds": sorted(w.name for w in bpy.data.worlds),
+        "images": sorted(i.name for i in bpy.data.images),
+        "groups": sorted(g.name for g in bpy.data.node_groups),
+        "sig": signature(ball.data.materials[0]),
+        "slots": [(s.link, s.material) for s in ball.material_slots],
+        "plain": len(plain.material_slots),
+    }
+    for obj in (ball, plain):
+        obj.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    if mode == "WORLD":
+        assert scene.world.name == "VR World"
+    assert bpy.ops.vr.remove() == {"FINISHED"}
+    after = {
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "worlds": sorted(w.name for w in bpy.data.worlds),
+        "images": sorted(i.name for i in bpy.data.images),
+        "groups": sorted(g.name for g in bpy.data.node_groups),
+        "sig": signature(ball.data.materials[0]),
+        "slots": [(s.link, s.material) for s in ball.material_slots],
+        "plain": len(plain.material_slots),
+    }
+    assert after == before
+    assert scene.world == world
+
+
+def test_generate_works_on_curves_and_text(addon):
+    scene = make_scene()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.resolution = "256"
+    bpy.ops.curve.primitive_bezier_circle_add(radius=1.0)
+    curve = bpy.context.active_object
+    curve.data.bevel_depth = 0.2
+    bpy.ops.object.text_add(location=(0, 0, -1.5))
+    text = bpy.context.active_object
+    text.data.extrude = 0.1
+    for obj in (curve, text):
+        obj.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    assert "VR Map " + curve.name in bpy.data.images and "VR Map " + text.name in bpy.data.images
+
+
+def test_poll_messages_and_bad_input(addon, tmp_path):
+    from vr_addon_under_test.operators import generate
+
+    ctx = bpy.context
+    assert generate.why_not_generate(ctx) == "The scene has no camera: add one and make it active"
+    scene = make_scene()
+    ball = add_sphere()
+    ball.select_set(True)
+    assert "plate" in generate.why_not_generate(ctx)
+    # A plate whose file is missing on disk: a clear error, nothing changed.
+    missing = bpy.data.images.new("Gone", 8, 8)
+    missing.filepath = str(tmp_path / "gone.png")
+    missing.source = "FILE"
+    scene.virtual_reflections.plate_image = missing
+    sig = signature(ball.data.materials[0])
+    with pytest.raises(ValueError, match="gone.png"):
+        generate.generate(ctx, [ball])
+    assert not generate.anything_attached() and signature(ball.data.materials[0]) == sig
+    with pytest.raises(RuntimeError, match="gone.png"):  # the operator reports an ERROR
+        bpy.ops.vr.generate()
+    # An object entirely off-screen: a warning, skipped.
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    ball.location = (0, 0, 50)
+    report = generate.generate(ctx, [ball])
+    assert not report.done and "outside the camera view" in report.warnings[0]

@@ -1,0 +1,53 @@
+"""A real Blender binary for end-to-end tests: $VR_BLENDER (a command), `blender` on PATH, or
+the project's Debian chroot tool (../shared/tools/blender-chroot) once set up. Tests skip
+with the reason when none is found."""
+
+import os
+import shlex
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+CHROOT_TOOLS = [
+    ROOT.parent / "shared/tools/blender-chroot",
+    Path("/work/shared/tools/blender-chroot"),
+]
+
+
+def find_blender():
+    """(command prefix list, description) or (None, reason)."""
+    if os.environ.get("VR_BLENDER"):
+        return shlex.split(os.environ["VR_BLENDER"]), "$VR_BLENDER"
+    if shutil.which("blender"):
+        return [shutil.which("blender")], "blender on PATH"
+    for tool in CHROOT_TOOLS:
+        if tool.is_file() and os.access(tool, os.X_OK):
+            root = subprocess.run(
+                [str(tool), "path"], capture_output=True, text=True
+            ).stdout.strip()
+            if root and (Path(root) / ".vr-ready").exists():
+                return [str(tool), "blender"], f"chroot {root}"
+            return None, f"the Blender chroot is not set up (run: {tool} setup)"
+    return None, "no Blender binary: set VR_BLENDER, put blender on PATH, or set up the chroot"
+
+
+@pytest.fixture(scope="session")
+def blender():
+    command, why = find_blender()
+    if command is None:
+        pytest.skip(why)
+
+    def run(*args, env=None, cwd=None, timeout=600):
+        return subprocess.run(
+            [*command, *map(str, args)],
+            capture_output=True,
+            text=True,
+            env={**os.environ, **(env or {})},
+            cwd=cwd or ROOT,
+            timeout=timeout,
+        )
+
+    return run

@@ -1,0 +1,132 @@
+"""Settings the artist edits: on the Scene (method, plate, combine) and on each Object.
+
+Defaults follow the paper (§3.2): enlargement 7.5 % (5–10 %), border distance 15 % (10–20 %),
+continuous front face or n triangles.
+"""
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+COMBINE_ITEMS = (
+    (
+        "REPLACE",
+        "Replace",
+        "Chrome: the object shows the environment map (the paper's replace mode)",
+    ),
+    ("MODULATE", "Modulate", "Material colour times the environment (the paper's modulate mode)"),
+    ("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
+    ("WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"),
+)
+FRONT_ITEMS = (
+    (
+        "CONTINUOUS",
+        "Continuous",
+        "The front face in the continuous limit (n -> infinity): no seams",
+    ),
+    ("TRIANGLES", "Triangles", "The paper's n triangles cut from the outer ring"),
+)
+RESOLUTION_ITEMS = tuple(
+    (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
+    for w in (256, 512, 1024, 2048, 4096)
+)
+
+
+class VR_SceneSettings(bpy.types.PropertyGroup):
+    plate_image: PointerProperty(
+        name="Plate",
+        type=bpy.types.Image,
+        description="Background photograph; empty: the active camera's background image",
+    )
+    enlarge: FloatProperty(
+        name="Enlargement",
+        description="Grow the object's screen bounds by this share of the image size (region X)",
+        default=7.5,
+        min=0.0,
+        max=50.0,
+        soft_min=0.0,
+        soft_max=20.0,
+        subtype="PERCENTAGE",
+    )
+    border: FloatProperty(
+        name="Border Distance",
+        description="Keep region X at least this share of the image size away from its edges",
+        default=15.0,
+        min=0.0,
+        max=45.0,
+        subtype="PERCENTAGE",
+    )
+    front: EnumProperty(name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS")
+    triangles: IntProperty(
+        name="Triangles",
+        description="n triangles for the front face (a multiple of 4)",
+        default=32,
+        min=4,
+        max=1024,
+        step=4,
+    )
+    resolution: EnumProperty(name="Resolution", items=RESOLUTION_ITEMS, default="1024")
+    combine: EnumProperty(name="Combine", items=COMBINE_ITEMS, default="REPLACE")
+    strength: FloatProperty(
+        name="Strength",
+        description="Brightness of the reflection (Mix: its maximum weight)",
+        default=1.0,
+        min=0.0,
+        soft_max=2.0,
+    )
+    ior: FloatProperty(
+        name="IOR",
+        description="Index of refraction for the Fresnel weight of Mix",
+        default=1.45,
+        min=1.0,
+        max=4.0,
+    )
+    save_maps: BoolProperty(
+        name="Save Maps Beside .blend",
+        description="Save maps as EXR files in a vr_maps folder beside the .blend, not packed",
+        default=False,
+    )
+    last_report: StringProperty(name="Last Run", default="")
+
+    def params(self):
+        """The engine's Params for these settings."""
+        from ..virtual_reflections import Params
+
+        n = 0 if self.front == "CONTINUOUS" else 4 * max(1, round(self.triangles / 4))
+        return Params(enlarge=self.enlarge / 100.0, border=self.border / 100.0, triangles=n)
+
+
+class VR_ObjectSettings(bpy.types.PropertyGroup):
+    enabled: BoolProperty(
+        name="Reflect Plate",
+        description="Give this object a virtual reflection when generating for marked objects",
+        default=False,
+    )
+    bounds: FloatVectorProperty(
+        name="Screen Bounds",
+        size=4,
+        description="Last screen bounds on the plate (x0 y0 x1 y1)",
+    )
+
+
+classes = (VR_SceneSettings, VR_ObjectSettings)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+    bpy.types.Scene.virtual_reflections = PointerProperty(type=VR_SceneSettings)
+    bpy.types.Object.virtual_reflections = PointerProperty(type=VR_ObjectSettings)
+
+
+def unregister():
+    del bpy.types.Object.virtual_reflections
+    del bpy.types.Scene.virtual_reflections
+    _unregister()
