@@ -6,16 +6,21 @@ centre (x + .5, y + .5) of W x H (top row first) looks along
 lon = -2π((x + .5)/W - .5), lat = -π((y + .5)/H - .5),
 d = (sin lon cos lat, sin lat, cos lon cos lat).
 
-The lookup happens in the node tree, with the camera's transform applied by the renderer, so a
+The lookup happens in the node tree, with the camera's transform applied at render time, so a
 moving or animated camera never needs a rebuilt map:
 
-    world direction --Vector Transform (World -> Camera)--> renderer camera space
-    renderer camera space (x right, y up, z forward) --flip x--> product camera frame
-    product frame --atan2--> UV (u right, v UP from the bottom row) or an Environment Texture
+    world direction --Vector Transform (World -> Camera)-->  renderer camera space  ("VR Camera
+    renderer camera space (x right, y up, z forward) --flip x--> product camera frame  LatLong")
+    product frame --atan2--> UV (u right, v UP from the bottom row)                  ("VR LatLong")
+                  --(Z, X, Y)--> vector for an Environment Texture (equirectangular)
 
 Vector Transform's "Camera" space is the same in Cycles and EEVEE (x right, y up, z FORWARD,
 i.e. Blender's camera-local frame with z negated): measured by rendering Vector Transform
 outputs in both engines, and EEVEE's GLSL applies `invert_z` on purpose to match Cycles.
+It is the camera of the view being rendered, though, and EEVEE renders the WORLD for its light
+probes with the probes' own views: a world using Vector Transform shows the right background
+but scrambles what glossy materials reflect. So the world reaches renderer camera space with
+drivers on ``scene.camera.matrix_world`` instead (see `attach_world`), then uses "VR LatLong".
 
 Sampling goes through an Environment Texture node fed with the product frame permuted into
 Blender's equirectangular convention, not through an Image Texture fed with the UV: EEVEE
@@ -321,8 +326,8 @@ def attach(obj, image, mode, strength=1.0, ior=1.45):
         _check_local(scene, f"scene {scene.name!r}")
         if is_attached(obj):
             detach(obj)
-        attach_world(scene, image, strength)
-        obj[RECORD] = {"mode": "WORLD", "scene": scene}
+        world = attach_world(scene, image, strength)
+        obj[RECORD] = {"mode": "WORLD", "scene": scene, "world": world}
         return
 
     if obj.data is None or not hasattr(obj.data, "materials"):
@@ -370,10 +375,17 @@ def detach(obj):
     _check_local(obj, f"object {obj.name!r}")
     mode = record.get("mode")
     if mode == "WORLD":
-        scene = record.get("scene")
+        scene, world = record.get("scene"), record.get("world")
         del obj[RECORD]
-        if scene is not None and scene.get(WORLD_RECORD) is not None:
-            detach_world(scene)
+        # The scene's world goes when no other object in WORLD mode still shares it.
+        scene_record = scene.get(WORLD_RECORD) if scene is not None else None
+        if scene_record is not None and scene_record.get("world") == world:
+            sharing = any(
+                other.get(RECORD) is not None and other[RECORD].get("world") == world
+                for other in bpy.data.objects
+            )
+            if not sharing:
+                detach_world(scene)
         return
 
     slots = [(state["link"], state.get("material")) for state in record.get("slots", [])]
@@ -542,6 +554,8 @@ def attach_world(scene, image, strength=1.0):
     """Give ``scene`` a NEW world "VR World" whose background is ``image`` looked up along the
     view direction in the frame of the scene's camera, so every glossy material reflects the
     plate, aligned with the camera. The previous world is recorded; `detach_world` restores it.
+    When the scene already has its VR World, that world gets the new image and strength (so
+    several objects in WORLD mode share one world). Returns the world.
 
     The world does not use Vector Transform: EEVEE evaluates the world for its light probes
     with the probes' own views as "camera", which scrambles what materials reflect. Instead
@@ -552,8 +566,14 @@ def attach_world(scene, image, strength=1.0):
     if not isinstance(image, bpy.types.Image):
         raise TypeError(f"image must be a bpy.types.Image, not {type(image).__name__}")
     _check_local(scene, f"scene {scene.name!r}")
-    if scene.get(WORLD_RECORD) is not None:
-        detach_world(scene)
+    record = scene.get(WORLD_RECORD)
+    if record is not None:
+        world = record.get("world")
+        if world is not None and scene.world == world:
+            world.node_tree.nodes["VR Environment"].image = image
+            world.node_tree.nodes["Background"].inputs["Strength"].default_value = strength
+            return world
+        detach_world(scene)  # the user assigned another world meanwhile: start over
     previous = scene.world
 
     world = bpy.data.worlds.new(WORLD_NAME)
@@ -630,15 +650,17 @@ def detach_world(scene):
     world = record.get("world")
     previous = record.get("previous")
     del scene[WORLD_RECORD]
-    scene.world = previous
-    if world is not None and world.get(CREATED) == "world" and world.users == 0:
-        bpy.data.worlds.remove(world)
+    if scene.world == world:
+        scene.world = previous
+    in_use = any(other.world == world for other in bpy.data.scenes)
+    if world is not None and world.get(CREATED) == "world" and not in_use:
+        bpy.data.worlds.remove(world)  # also clears objects' WORLD records pointing at it
     _remove_unused_groups()
 
 
 # --- comparing node trees (tests, and checking that nothing changed) --------------------------
 
-_SKIPPED_NODE_PROPS = {"rna_type", "select", "is_active_output", "dimensions", "internal_links"}
+_SKIPPED_NODE_PROPS = {"rna_type", "select", "dimensions"}  # UI state, not shading
 
 
 def node_tree_signature(tree):
@@ -686,6 +708,8 @@ def _plain(value):
         return None  # nested structs (e.g. texture mapping) are not compared
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
+    if isinstance(value, (set, frozenset)):  # enum flags
+        return tuple(sorted(value))
     try:
         return tuple(_plain(v) for v in value)
     except TypeError:

@@ -283,7 +283,7 @@ def plate_scene(tmp_path, width=64, height=36):
     render = scene.render
     render.resolution_x, render.resolution_y, render.resolution_percentage = 1920, 1080, 50
     render.pixel_aspect_x, render.pixel_aspect_y = 2.0, 1.0
-    render.film_transparent = False
+    render.film_transparent = render.use_compositing = False
     add_camera(scene)
     path = write_image(tmp_path / "plate.exr", gradient_plate(width, height), "float")
     return scene, bpy.data.images.load(str(path))

@@ -3,10 +3,11 @@ Blender binary."""
 
 import json
 import zipfile
+from pathlib import Path
 
 import pytest
 
-from .conftest import ROOT
+ROOT = Path(__file__).resolve().parents[2]
 
 pytestmark = pytest.mark.e2e
 
@@ -48,7 +49,7 @@ scene.render.resolution_x, scene.render.resolution_y = 64, 36
 scene.render.engine = "CYCLES"
 scene.cycles.samples = 2
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
-print(json.dumps({"addons": sorted(a.module for a in bpy.context.preferences.addons)}))
+print("ADDONS=" + json.dumps(sorted(a.module for a in bpy.context.preferences.addons)))
 """
 
 
@@ -64,7 +65,8 @@ def test_installed_extension_renders_headless(blender, package, tmp_path):
     script.write_text(SCENE_SCRIPT)
     r = blender("-b", "--python", script, "--", shot, env=env)
     assert r.returncode == 0 and shot.exists(), r.stdout[-2000:] + r.stderr[-2000:]
-    addons = json.loads(r.stdout.strip().splitlines()[-1])["addons"]
+    line = next(x for x in r.stdout.splitlines() if x.startswith("ADDONS="))
+    addons = json.loads(line[len("ADDONS=") :])
     assert any(a.endswith(".virtual_reflections") for a in addons), addons
     plate = ROOT / "sample_scenes/plates/courtyard.jpg"
     out = tmp_path / "out"
