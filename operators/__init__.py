@@ -1,8 +1,8 @@
 """Everything that touches bpy data: bounds, images, node groups, renders."""
 
-from . import generate
+from . import generate, maps
 
-_modules = (generate,)
+_modules = (maps, generate)
 
 
 def register():

@@ -9,14 +9,30 @@ pixels (origin top-left, y down, x1/y1 exclusive). Frames and layouts: see layou
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from .colour import clean_plate
 from .mipmap import build_pyramid, pyramid_size
+from .parallel import for_blocks
 from .params import Params
 from .table import LookupTable, lookup_table
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
+
+_local = threading.local()
+
+
+def _scratch(name: str, shape: tuple) -> np.ndarray:
+    """A float32 buffer reused by the calling thread across applies and tables, so a new
+    frame or a new table does not pay for fresh memory (page faults) every time."""
+    pool = _local.__dict__.setdefault("pool", {})
+    size = int(np.prod(shape))
+    buf = pool.get(name)
+    if buf is None or buf.size < size:
+        buf = pool[name] = np.empty(size, np.float32)
+    return buf[:size].reshape(shape)
 
 
 def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
@@ -31,10 +47,15 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             f"{seg.width}x{seg.height}"
         )
     rows = pyramid_size(seg.height, seg.width, table.levels)
-    pyramid = build_pyramid(plate, table.levels, out=table.scratch("pyramid", (rows, 3)))
-    taps = table.scratch("taps", table.index.shape + (3,))
-    np.take(pyramid, table.index, axis=0, mode="clip", out=taps)  # (T, 8, 3)
-    out = np.einsum("tkc,tk->tc", taps, table.weight)
+    pyramid = build_pyramid(plate, table.levels, out=_scratch("pyramid", (rows, 3)))
+    taps = _scratch("taps", table.index.shape + (3,))
+    out = np.empty((table.index.shape[0], 3), np.float32)
+
+    def gather(a, b):  # one block of texels: its 8 taps, then their weighted sum
+        np.take(pyramid, table.index[a:b], axis=0, mode="clip", out=taps[a:b])
+        np.einsum("tkc,tk->tc", taps[a:b], table.weight[a:b], out=out[a:b])
+
+    for_blocks(gather, out.shape[0])
     return out.reshape(table.shape + (3,))
 
 

@@ -40,7 +40,7 @@ def map_shape(layout: str, size: int) -> tuple[int, int]:
     raise ValueError(f"unknown layout {layout!r}; use one of {', '.join(LAYOUTS)}")
 
 
-def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int) -> np.ndarray:
+def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int, dtype=np.float64) -> np.ndarray:
     """Directions at continuous lat-long pixel positions (fx, fy); pixel centres at +0.5.
 
     fx, fy broadcast together; returns (..., 3) float64 unit vectors. For a grid, pass fx
@@ -51,7 +51,7 @@ def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int) -> np.ndarray
     lon = -2.0 * np.pi * (np.asarray(fx, dtype=np.float64) / width - 0.5)
     shape = np.broadcast_shapes(lat.shape, lon.shape)
     c = np.cos(lat)
-    out = np.empty(shape + (3,))
+    out = np.empty(shape + (3,), dtype=dtype)
     np.multiply(np.sin(lon), c, out=out[..., 0])
     out[..., 1] = np.sin(lat)
     np.multiply(np.cos(lon), c, out=out[..., 2])
@@ -94,7 +94,7 @@ _FACE_AXES = (
 )
 
 
-def texel_directions(layout: str, size: int, offset=(0.0, 0.0)) -> np.ndarray:
+def texel_directions(layout: str, size: int, offset=(0.0, 0.0), dtype=np.float64) -> np.ndarray:
     """Directions through every texel of a map, shifted by `offset` = (dx, dy) texels.
 
     Returns (H, W, 3) float64 for the map shape `map_shape(layout, size)`. Lat-long texel
@@ -105,8 +105,14 @@ def texel_directions(layout: str, size: int, offset=(0.0, 0.0)) -> np.ndarray:
     if layout == "latlong":
         fx = np.arange(width, dtype=np.float64)[None, :] + 0.5 + dx
         fy = np.arange(height, dtype=np.float64)[:, None] + 0.5 + dy
-        return latlong_directions(fx, fy, width)
-    # Faces are whole blocks of rows: fill them one by one (no per-texel face lookup).
-    fc = np.arange(width, dtype=np.float64)[None, :] + dx
-    fr = np.arange(size, dtype=np.float64)[:, None] + dy
-    return np.concatenate([cube_directions(np.full((1, 1), f), fc, fr, size) for f in range(6)])
+        return latlong_directions(fx, fy, width, dtype)
+    # Faces are whole blocks of rows: fill each one by broadcasting (no per-texel face lookup).
+    scale = 2.0 / (size - 1)
+    a = (np.arange(width, dtype=np.float64) + dx) * scale - 1.0  # along a row
+    b = (np.arange(size, dtype=np.float64) + dy) * scale - 1.0  # down a face
+    ab = (None, a[None, :], b[:, None])
+    out = np.empty((6, size, size, 3), dtype=dtype)
+    for f, (ix, sx, iy, sy, iz, sz) in enumerate(_FACE_AXES):
+        for c, (i, s) in enumerate(((ix, sx), (iy, sy), (iz, sz))):
+            out[f, :, :, c] = s * ab[i] if i else s
+    return out.reshape(height, width, 3)

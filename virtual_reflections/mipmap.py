@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .parallel import for_blocks
+
 
 def level_shapes(height: int, width: int, levels: int | None = None) -> list[tuple[int, int]]:
     """(h, w) of every level (without the border), down to 1 x 1 or `levels` levels."""
@@ -75,7 +77,8 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, out=None) -> np.
         flat[offsets[i] : offsets[i + 1]].reshape(sh[0] + 2, sh[1] + 2, 3)
         for i, sh in enumerate(shapes)
     ]
-    bordered[0][1:-1, 1:-1] = plate
+    level0 = bordered[0][1:-1, 1:-1]
+    for_blocks(lambda a, b: np.copyto(level0[a:b], plate[a:b]), h, min_rows=128)
     for src, dst in zip(bordered, bordered[1:]):
         _halve(src[1:-1, 1:-1], dst[1:-1, 1:-1])
     for level in bordered:

@@ -120,5 +120,8 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
 
     # The zero vector (no face): the centre of X.
     out[(ax == 0) & (ay == 0) & (az == 0)] = (cx, cy)
-    np.clip(out, 0.0, (W, H), out=out)
+    for axis, size in ((0, W), (1, H)):  # (np.clip with per-column bounds is slow)
+        column = out[:, axis]
+        np.maximum(column, 0.0, out=column)
+        np.minimum(column, size, out=column)
     return out.reshape(shape + (2,))

@@ -14,13 +14,13 @@ face's centre in the continuous limit) each texel averages the area it covers.
 from __future__ import annotations
 
 import functools
-import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .layouts import map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
+from .parallel import for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
@@ -44,15 +44,6 @@ class LookupTable:
     weight: np.ndarray
     position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
     lod: np.ndarray  # (H, W) float32 mip level of each texel
-    _scratch: dict = field(default_factory=dict, repr=False)  # per-thread reusable buffers
-
-    def scratch(self, name: str, shape: tuple, dtype=np.float32) -> np.ndarray:
-        """A buffer reused across applies by the calling thread (no page faults per frame)."""
-        key = (threading.get_ident(), name)
-        buf = self._scratch.get(key)
-        if buf is None or buf.shape != shape:
-            buf = self._scratch[key] = np.empty(shape, dtype)
-        return buf
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
@@ -97,11 +88,11 @@ def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
     return 0.5 * np.log2(squared, dtype=np.float32)
 
 
-def _bilinear(px, py, lod, shapes, offsets):
+def _bilinear(px, py, lod, shapes, offsets, index, weight):
     """Trilinear taps: bilinear at level-0 positions (px, py) on mip levels floor(lod) and
     the next one, blended by the fraction of lod.
 
-    Returns index (T, 8) intp and weight (T, 8) float32 rows summing to 1. The pyramid's
+    Writes index (T, 8) intp and weight (T, 8) float32 (rows summing to 1). The pyramid's
     border (mipmap.py) makes clamping unnecessary: positions lie in [0, W] x [0, H].
     """
     top = len(shapes) - 1
@@ -116,32 +107,47 @@ def _bilinear(px, py, lod, shapes, offsets):
     fy = py[:, None] * scale + 0.5
     x0, y0 = np.floor(fx), np.floor(fy)
     ax, ay = fx - x0, fy - y0
-    base = offsets.astype(np.int64)[level] + (y0.astype(np.int64) * stride + x0.astype(np.int64))
-    index = np.empty(base.shape + (4,), dtype=np.intp)
-    index[..., 0] = base
-    index[..., 1] = base + 1
-    index[..., 2] = base + stride
-    index[..., 3] = index[..., 2] + 1
-    weight = np.empty(base.shape + (4,), dtype=np.float32)
+    base = y0.astype(np.int32)
+    base *= stride
+    base += x0.astype(np.int32)
+    base += offsets.astype(np.int32)[level]  # the whole pyramid has < 2^31 rows
+    # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
+    index = index.reshape(base.shape + (4,))
+    np.add(base[..., None], np.array([0, 1, 0, 1], dtype=np.intp), out=index)
+    index[..., 2:] += stride[..., None]
+    weight = weight.reshape(base.shape + (4,))
     bx, by = share - share * ax, 1 - ay  # the level's share folded into x
     ax *= share
     np.multiply(bx, by, out=weight[..., 0])
     np.multiply(ax, by, out=weight[..., 1])
     np.multiply(bx, ay, out=weight[..., 2])
     np.multiply(ax, ay, out=weight[..., 3])
-    return index.reshape(-1, 8), weight.reshape(-1, 8)
 
 
 def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -> LookupTable:
     """Build the table for a segmentation (uncached; see `lookup_table`)."""
     shape = map_shape(layout, size)
-    directions = texel_directions(layout, size).astype(np.float32)
-    position = plate_positions(directions, seg, triangles)  # (H, W, 2) float32
+    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+    count = directions.shape[0]
+    position = np.empty((count, 2), np.float32)
+
+    def project(a, b):
+        position[a:b] = plate_positions(directions[a:b], seg, triangles)
+
+    for_blocks(project, count)
+    position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
+    offsets = level_offsets(shapes)
     top = len(shapes) - 1
     lod = np.clip(_lod(layout, size, position), 0.0, top).ravel()
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
-    index, weight = _bilinear(px, py, lod, shapes, level_offsets(shapes))
+    index = np.empty((count, 8), np.intp)
+    weight = np.empty((count, 8), np.float32)
+
+    def taps(a, b):
+        _bilinear(px[a:b], py[a:b], lod[a:b], shapes, offsets, index[a:b], weight[a:b])
+
+    for_blocks(taps, count)
     for a in (index, weight, position, lod):
         a.flags.writeable = False
     return LookupTable(
@@ -157,7 +163,7 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
     )
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=8)  # ~60 MB per 1024 x 512 table
 def lookup_table(
     width: int, height: int, bbox: tuple, params: Params, layout: str = "latlong", size: int = 1024
 ) -> LookupTable:

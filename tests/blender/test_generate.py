@@ -83,7 +83,7 @@ def test_register_unregister_leaves_nothing(addon_module):
     assert set(dir(bpy.types)) == before
 
 
-def test_generate_builds_maps_and_nodes(addon):
+def test_generate_builds_maps_and_nodes(addon, tmp_path):
     scene = make_scene()
     ball = add_sphere()
     scene.virtual_reflections.plate_image = red_blue_plate()
@@ -93,12 +93,19 @@ def test_generate_builds_maps_and_nodes(addon):
     ball.select_set(True)
     assert bpy.ops.vr.generate() == {"FINISHED"}
     image = bpy.data.images["VR Map Ball"]
-    assert tuple(image.size) == (256, 128) and image.is_float and image.packed_file
+    assert tuple(image.size) == (256, 128) and image.is_float
     slot = ball.material_slots[0]
     assert slot.link == "OBJECT" and slot.material is not ball.data.materials[0]
     assert any(n.type == "GROUP" for n in slot.material.node_tree.nodes)
     assert signature(ball.data.materials[0]) == original  # the user's material untouched
     assert "ms" in scene.virtual_reflections.last_report
+    # The map is packed into the .blend when it is saved, and comes back with it.
+    path = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert bpy.data.images["VR Map Ball"].packed_file
+    bpy.ops.wm.open_mainfile(filepath=path)
+    ball = bpy.data.objects["Ball"]
+    assert bpy.data.images["VR Map Ball"].packed_file and ball.material_slots[0].link == "OBJECT"
     # Regenerating updates the same image in place.
     assert bpy.ops.vr.generate() == {"FINISHED"}
     assert [i.name for i in bpy.data.images if i.name.startswith("VR Map")] == ["VR Map Ball"]

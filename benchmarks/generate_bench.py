@@ -1,0 +1,95 @@
+"""Benchmark: Generate Virtual Reflection end to end in Blender (bpy module).
+
+One object of ~100k vertices, a 1920x1080 plate, a 1024x512 map. Prints medians per stage
+for the first generation of a pose (bounds changed: the table is built) and for a
+regeneration with unchanged bounds (the cached table: only the gather), and the end-to-end
+time of the operator call.
+
+    .venv/bin/python benchmarks/generate_bench.py [--repeat N]
+"""
+
+import argparse
+import importlib.util
+import math
+import pathlib
+import statistics
+import sys
+import time
+
+import bpy
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def load_addon():
+    spec = importlib.util.spec_from_file_location(
+        "vr_bench_addon", ROOT / "__init__.py", submodule_search_locations=[str(ROOT)]
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    module.register()
+    return module
+
+
+def scene_with_object():
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, -8.0, 0.5)
+    cam.rotation_euler = (math.radians(88), 0.0, 0.0)
+    scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=400, ring_count=250, radius=1.5)
+    obj = bpy.context.active_object
+    plate = bpy.data.images.new("Plate", 1920, 1080, alpha=False, float_buffer=False)
+    rng = np.random.default_rng(1)
+    px = np.ones((1080, 1920, 4), np.float32)
+    px[..., :3] = rng.random((1080, 1920, 3), dtype=np.float32)
+    plate.pixels.foreach_set(px.ravel())
+    scene.virtual_reflections.plate_image = plate
+    scene.virtual_reflections.resolution = "1024"
+    obj.select_set(True)
+    return scene, obj
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--repeat", type=int, default=9)
+    args = parser.parse_args()
+    addon = load_addon()
+    generate = sys.modules[addon.__name__ + ".operators.generate"]
+    scene, obj = scene_with_object()
+    print(
+        f"Blender {bpy.app.version_string}; object {len(obj.data.vertices)} vertices; "
+        f"plate 1920x1080 8-bit; map 1024x512"
+    )
+    rows = {"moved": [], "same": []}
+    ends = {"moved": [], "same": []}
+    for i in range(args.repeat):
+        for case in ("moved", "same"):
+            if case == "moved":
+                obj.location.x = 0.01 * (i + 1)  # new bounds: the table is rebuilt
+                bpy.context.view_layer.update()
+            t = time.perf_counter()
+            report = generate.generate(bpy.context, [obj])
+            ends[case].append(time.perf_counter() - t)
+            rows[case].append(report.timings)
+    for case, label in (("moved", "object moved (table built)"), ("same", "unchanged (cached)")):
+        stages = rows[case][0].keys()
+        parts = ", ".join(
+            f"{s} {1000 * statistics.median(r[s] for r in rows[case]):.1f}" for s in stages
+        )
+        print(
+            f"  {label:28s}: median {1000 * statistics.median(ends[case]):6.1f} ms end to end"
+            f"  ({parts} ms)"
+        )
+    t = time.perf_counter()
+    bpy.ops.vr.generate()
+    print(f"  operator call (cached)      : {1000 * (time.perf_counter() - t):6.1f} ms")
+
+
+if __name__ == "__main__":
+    main()
