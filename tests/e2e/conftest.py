@@ -40,9 +40,9 @@ def blender():
     if command is None:
         pytest.skip(why)
 
-    def run(*args, env=None, cwd=None, timeout=600):
+    def run(*args, env=None, cwd=None, timeout=600, wrap=()):
         return subprocess.run(
-            [*command, *map(str, args)],
+            [*wrap, *command, *map(str, args)],
             capture_output=True,
             text=True,
             env={**os.environ, **(env or {})},
