@@ -78,12 +78,17 @@ def run(bpy, addon, own, args):
         if not os.path.isfile(args.blend):
             raise ValueError(f"shot not found: {args.blend}")
         bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
-    if own and not hasattr(bpy.types.Scene, "virtual_reflections"):
+    registered = own and not hasattr(bpy.types.Scene, "virtual_reflections")
+    if registered:
         addon.register()
-    from importlib import import_module
+    try:
+        from importlib import import_module
 
-    batch = import_module(addon.__name__ + ".operators.batch")
-    return batch.render_shot(args, started)
+        batch = import_module(addon.__name__ + ".operators.batch")
+        return batch.render_shot(args, started)
+    finally:
+        if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
+            addon.unregister()
 
 
 if __name__ == "__main__":

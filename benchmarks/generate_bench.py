@@ -89,6 +89,7 @@ def main():
     t = time.perf_counter()
     bpy.ops.vr.generate()
     print(f"  operator call (cached)      : {1000 * (time.perf_counter() - t):6.1f} ms")
+    addon.unregister()  # the bpy 4.5 module hangs at exit while classes stay registered
 
 
 if __name__ == "__main__":

@@ -1,0 +1,81 @@
+"""The headless batch entry through the bpy module: `python -m render_shot ...`."""
+
+import math
+import pathlib
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+PLATE = ROOT / "sample_scenes/plates/courtyard.jpg"
+
+
+@pytest.fixture
+def shot(clean_file, tmp_path):
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, -6.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 2
+    scene.view_settings.view_transform = "Standard"
+    path = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def run(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "render_shot", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def read(path):
+    image = bpy.data.images.load(str(path))
+    w, h = image.size
+    buf = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(buf)
+    bpy.data.images.remove(image)
+    return buf.reshape(h, w, 4)[::-1]
+
+
+def test_render_shot_writes_render_and_composite(shot, tmp_path):
+    out = tmp_path / "out"
+    r = run(shot, "--plate", PLATE, "--out", out, "--resolution", 256, "--scale", 10)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "reflections: 1 reflection(s)" in r.stdout
+    render, comp = read(out / "shot_render.exr"), read(out / "shot_composite.exr")
+    assert render.shape == comp.shape == (72, 128, 4)
+    alpha = render[..., 3]
+    assert alpha.max() > 0.99 and alpha.min() == 0.0  # the sphere over a transparent film
+    # Where the film is empty the composite is the plate (not black).
+    assert comp[alpha == 0][:, :3].mean() > 0.05
+    assert (out / "shot_composite.png").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--plate", "{tmp}/missing.jpg", "--out", "{tmp}/o"), "plate not found"),
+        (("{tmp}/nope.blend", "--plate", PLATE, "--out", "{tmp}/o"), "shot not found"),
+        (("--plate", PLATE, "--out", "{tmp}/o", "--objects", "Nobody"), "no object named"),
+    ],
+)
+def test_render_shot_bad_input(shot, tmp_path, args, message):
+    args = [str(a).format(tmp=tmp_path) for a in args]
+    if not args[0].endswith(".blend"):
+        args = [str(shot), *args]
+    r = run(*args)
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    errors = [x for x in r.stderr.splitlines() if x.startswith("render_shot: error")]
+    assert len(errors) == 1 and message in errors[0], r.stderr[-2000:]
