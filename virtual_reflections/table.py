@@ -30,7 +30,7 @@ from .segmentation import Segmentation, segment
 class LookupTable:
     """Texel -> weighted pyramid pixels for one plate size, segmentation and map layout.
 
-    index:  (T, 8) intp rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
+    index:  (T, 8) int32 rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
     weight: (T, 8) float32, rows sum to 1.
     shape:  (H, W) of the map; `levels` pyramid levels are needed.
     """
@@ -92,7 +92,7 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     """Trilinear taps: bilinear at level-0 positions (px, py) on mip levels floor(lod) and
     the next one, blended by the fraction of lod.
 
-    Writes index (T, 8) intp and weight (T, 8) float32 (rows summing to 1). The pyramid's
+    Writes index (T, 8) int32 and weight (T, 8) float32 (rows summing to 1). The pyramid's
     border (mipmap.py) makes clamping unnecessary: positions lie in [0, W] x [0, H].
     """
     top = len(shapes) - 1
@@ -113,7 +113,7 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     base += offsets.astype(np.int32)[level]  # the whole pyramid has < 2^31 rows
     # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
     index = index.reshape(base.shape + (4,))
-    np.add(base[..., None], np.array([0, 1, 0, 1], dtype=np.intp), out=index)
+    np.add(base[..., None], np.array([0, 1, 0, 1], dtype=np.int32), out=index)
     index[..., 2:] += stride[..., None]
     weight = weight.reshape(base.shape + (4,))
     bx, by = share - share * ax, 1 - ay  # the level's share folded into x
@@ -141,7 +141,7 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
     top = len(shapes) - 1
     lod = np.clip(_lod(layout, size, position), 0.0, top).ravel()
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
-    index = np.empty((count, 8), np.intp)
+    index = np.empty((count, 8), np.int32)  # the whole pyramid has < 2^31 rows
     weight = np.empty((count, 8), np.float32)
 
     def taps(a, b):

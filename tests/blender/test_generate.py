@@ -208,3 +208,25 @@ def test_poll_messages_and_bad_input(addon, tmp_path):
     ball.location = (0, 0, 50)
     report = generate.generate(ctx, [ball])
     assert not report.done and "outside the camera view" in report.warnings[0]
+
+
+def test_linked_objects_are_refused_and_left_alone(addon, tmp_path):
+    # A library file with a sphere, linked (read-only) into the shot.
+    add_sphere("Linked Ball")
+    lib = str(tmp_path / "lib.blend")
+    bpy.data.libraries.write(lib, {bpy.data.objects["Linked Ball"]})
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = make_scene()
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.objects = ["Linked Ball"]
+    linked = dst.objects[0]
+    scene.collection.objects.link(linked)
+    local = add_sphere("Local Ball", location=(2.5, 0, 0))
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.resolution = "256"
+    from vr_addon_under_test.operators import generate
+
+    report = generate.generate(bpy.context, [linked, local])
+    assert report.done == ["Local Ball"]
+    assert any("linked" in w and "Linked Ball" in w for w in report.warnings)
+    assert linked.material_slots[0].link == "DATA" and "VR Map Linked Ball" not in bpy.data.images
