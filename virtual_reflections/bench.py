@@ -51,6 +51,56 @@ def _peer():
     return py360convert, f"py360convert {getattr(py360convert, '__version__', '')} ({backend})"
 
 
+def run_sweep(path: str, repeat: int = 7) -> dict:
+    """Apply time against map size, ours and the peer's, in one run; charted into `path`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plate = _plate()
+    seg = segment(PLATE_W, PLATE_H, BBOX, Params())
+    p360, peer_name = _peer()
+    widths = (256, 512, 1024, 2048)
+    rows = {"build": [], "apply": [], "peer": []}
+    for width in widths:
+        face = width // 4
+        cube = apply_table(build_table(seg, "cube", face), plate)
+        faces = [cube[i * face : (i + 1) * face] for i in range(6)]
+        table = build_table(seg, "latlong", width)
+        rows["build"].append(_median_ms(lambda t=width: build_table(seg, "latlong", t), 3))
+        rows["apply"].append(_median_ms(lambda t=table: apply_table(t, plate), repeat))
+        if p360 is not None:
+            p360.c2e(faces, width // 2, width, cube_format="list")
+            rows["peer"].append(
+                _median_ms(
+                    lambda f=faces, w=width: p360.c2e(f, w // 2, w, cube_format="list"), repeat
+                )
+            )
+        print(
+            f"  lat-long {width:5d} x {width // 2:4d}: build {rows['build'][-1]:7.1f} ms, "
+            f"apply {rows['apply'][-1]:7.1f} ms"
+            + (f", peer c2e {rows['peer'][-1]:7.1f} ms" if rows["peer"] else "")
+        )
+    fig, ax = plt.subplots(figsize=(6.4, 3.6), dpi=100)
+    ax.plot(widths, rows["apply"], "o-", label="ours: apply table (plate -> lat-long)")
+    ax.plot(widths, rows["build"], "s--", label="ours: build table (once per bounds)")
+    if rows["peer"]:
+        ax.plot(widths, rows["peer"], "^-", label=f"peer: {peer_name} c2e (cube -> lat-long)")
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xticks(widths, [f"{w}x{w // 2}" for w in widths])
+    ax.set_xlabel("lat-long map size")
+    ax.set_ylabel("median time (ms)")
+    ax.set_title(f"1920x1080 plate, {os.cpu_count()} cores, medians of {repeat}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    print(f"wrote {path}")
+    return rows
+
+
 def run_bench(repeat: int = 15) -> dict:
     """Print and return the figures (milliseconds, medians over `repeat` runs)."""
     plate = _plate()

@@ -3,7 +3,7 @@
     python -m virtual_reflections envmap PLATE -o OUT --bbox X0 Y0 X1 Y1 [--layout latlong|cube]
         [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
-    python -m virtual_reflections bench [--repeat N]
+    python -m virtual_reflections bench [--repeat N] [--chart PNG]
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
@@ -86,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_map_options(p)
     p = sub.add_parser("bench", help="time table building and applying against py360convert")
     p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
+    p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
     return parser
 
 
@@ -154,9 +155,11 @@ def main(argv=None) -> int:
         elif args.command == "segment":
             run_segment(args)
         else:
-            from .bench import run_bench
+            from .bench import run_bench, run_sweep
 
             run_bench(repeat=args.repeat)
+            if args.chart:
+                run_sweep(args.chart)
     except (UsageError, ImageError) as exc:
         print(f"virtual_reflections: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -46,8 +46,9 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             f"plate is {plate.shape[1]}x{plate.shape[0]}, table was built for "
             f"{seg.width}x{seg.height}"
         )
-    rows = pyramid_size(seg.height, seg.width, table.levels)
-    pyramid = build_pyramid(plate, table.levels, out=_scratch("pyramid", (rows, 3)))
+    first = table.first_level
+    rows = pyramid_size(seg.height, seg.width, table.levels, first)
+    pyramid = build_pyramid(plate, table.levels, first, out=_scratch("pyramid", (rows, 3)))
     taps = _scratch("taps", table.index.shape + (3,))
     out = np.empty((table.index.shape[0], 3), np.float32)
 

@@ -24,9 +24,12 @@ def level_shapes(height: int, width: int, levels: int | None = None) -> list[tup
     return shapes
 
 
-def level_offsets(shapes) -> np.ndarray:
-    """Row offset of each (bordered) level in the flat array; the last entry is the total."""
-    sizes = [(h + 2) * (w + 2) for h, w in shapes]
+def level_offsets(shapes, first: int = 0) -> np.ndarray:
+    """Row offset of each (bordered) level in the flat array; the last entry is the total.
+
+    Levels below `first` are not stored (no table needs them): their offsets are 0.
+    """
+    sizes = [(h + 2) * (w + 2) if i >= first else 0 for i, (h, w) in enumerate(shapes)]
     return np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
 
 
@@ -60,34 +63,40 @@ def _fill_border(level: np.ndarray) -> None:
     level[:, 0], level[:, -1] = level[:, 1], level[:, -2]
 
 
-def pyramid_size(height: int, width: int, levels: int | None = None) -> int:
-    """Rows of the flat pyramid of a height x width plate."""
-    return int(level_offsets(level_shapes(height, width, levels))[-1])
+def pyramid_size(height: int, width: int, levels: int | None = None, first: int = 0) -> int:
+    """Rows of the flat pyramid of a height x width plate (levels first .. levels - 1)."""
+    return int(level_offsets(level_shapes(height, width, levels), first)[-1])
 
 
-def build_pyramid(plate: np.ndarray, levels: int | None = None, out=None) -> np.ndarray:
-    """The flat bordered pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32,
-    written into `out` when given (shape (pyramid_size(H, W, levels), 3))."""
+def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, out=None):
+    """The flat bordered pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32
+    holding levels `first` .. `levels` - 1, written into `out` when given (shape
+    (pyramid_size(H, W, levels, first), 3)). Finer levels are only computed on the way."""
     plate = np.asarray(plate, dtype=np.float32)
     h, w = plate.shape[:2]
     shapes = level_shapes(h, w, levels)
-    offsets = level_offsets(shapes)
+    offsets = level_offsets(shapes, first)
     flat = np.empty((int(offsets[-1]), 3), dtype=np.float32) if out is None else out
-    bordered = [
-        flat[offsets[i] : offsets[i + 1]].reshape(sh[0] + 2, sh[1] + 2, 3)
-        for i, sh in enumerate(shapes)
-    ]
-    level0 = bordered[0][1:-1, 1:-1]
-    for_blocks(lambda a, b: np.copyto(level0[a:b], plate[a:b]), h, min_rows=128)
-    for src, dst in zip(bordered, bordered[1:]):
-        _halve(src[1:-1, 1:-1], dst[1:-1, 1:-1])
-    for level in bordered:
-        _fill_border(level)
+    previous = plate
+    for i, (lh, lw) in enumerate(shapes):
+        stored = None
+        if i >= first:
+            stored = flat[offsets[i] : offsets[i + 1]].reshape(lh + 2, lw + 2, 3)
+        if i == 0:
+            if stored is not None:
+                level0 = stored[1:-1, 1:-1]
+                for_blocks(lambda a, b, d=level0: np.copyto(d[a:b], plate[a:b]), h, min_rows=128)
+        else:
+            inner = stored[1:-1, 1:-1] if stored is not None else np.empty((lh, lw, 3), np.float32)
+            _halve(previous, inner)
+            previous = inner
+        if stored is not None:
+            _fill_border(stored)
     return flat
 
 
-def level_view(flat: np.ndarray, shapes, level: int) -> np.ndarray:
+def level_view(flat: np.ndarray, shapes, level: int, first: int = 0) -> np.ndarray:
     """Level `level` of a flat pyramid as an (h, w, 3) view (without the border)."""
-    offsets = level_offsets(shapes)
+    offsets = level_offsets(shapes, first)
     h, w = shapes[level]
     return flat[offsets[level] : offsets[level + 1]].reshape(h + 2, w + 2, 3)[1:-1, 1:-1]

@@ -32,7 +32,7 @@ class LookupTable:
 
     index:  (T, 8) int32 rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
     weight: (T, 8) float32, rows sum to 1.
-    shape:  (H, W) of the map; `levels` pyramid levels are needed.
+    shape:  (H, W) of the map; pyramid levels `first_level` .. `levels` - 1 are needed.
     """
 
     segmentation: Segmentation
@@ -40,6 +40,7 @@ class LookupTable:
     size: int
     shape: tuple[int, int]
     levels: int
+    first_level: int
     index: np.ndarray
     weight: np.ndarray
     position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
@@ -137,9 +138,11 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
     for_blocks(project, count)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
-    offsets = level_offsets(shapes)
     top = len(shapes) - 1
     lod = np.clip(_lod(layout, size, position), 0.0, top).ravel()
+    # Model no more than the map needs: levels finer than any texel's are not stored.
+    first = min(int(lod.min()), max(top - 1, 0))
+    offsets = level_offsets(shapes, first)
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
     index = np.empty((count, 8), np.int32)  # the whole pyramid has < 2^31 rows
     weight = np.empty((count, 8), np.float32)
@@ -156,6 +159,7 @@ def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -
         size=size,
         shape=shape,
         levels=min(int(lod.max()) + 2, top + 1),
+        first_level=first,
         index=index,
         weight=weight,
         position=position,

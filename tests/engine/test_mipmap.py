@@ -1,0 +1,43 @@
+"""The mip pyramid: box filters with edge repetition, bordered levels, partial pyramids."""
+
+import numpy as np
+import pytest
+
+from virtual_reflections import Params, lookup_table
+from virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
+
+
+@pytest.mark.parametrize("h, w", [(8, 8), (7, 5), (1, 6), (5, 1), (1, 1), (37, 50)])
+def test_levels_are_2x2_box_filters_with_repeated_edges(h, w):
+    rng = np.random.default_rng(h * 100 + w)
+    plate = rng.random((h, w, 3), dtype=np.float32)
+    flat, shapes = build_pyramid(plate), level_shapes(h, w)
+    assert shapes[-1] == (1, 1)
+    previous = plate
+    for level in range(1, len(shapes)):
+        p = np.pad(
+            previous, ((0, previous.shape[0] % 2), (0, previous.shape[1] % 2), (0, 0)), mode="edge"
+        )
+        expected = p.reshape(p.shape[0] // 2, 2, p.shape[1] // 2, 2, 3).mean((1, 3))
+        got = level_view(flat, shapes, level)
+        assert np.allclose(got, expected, atol=1e-6)
+        previous = got
+    assert np.array_equal(level_view(flat, shapes, 0), plate)
+
+
+def test_partial_pyramid_holds_the_same_coarse_levels():
+    plate = np.random.default_rng(0).random((37, 50, 3), dtype=np.float32)
+    shapes = level_shapes(37, 50)
+    full, part = build_pyramid(plate), build_pyramid(plate, first=2)
+    assert part.shape[0] < full.shape[0] / 8
+    for level in range(2, len(shapes)):
+        assert np.array_equal(level_view(full, shapes, level), level_view(part, shapes, level, 2))
+
+
+def test_small_maps_skip_the_fine_levels():
+    """A 128-wide map of a 1920x1080 plate never reads the plate's full resolution."""
+    table = lookup_table(1920, 1080, (800.0, 400.0, 1100.0, 700.0), Params(), "latlong", 128)
+    assert table.first_level >= 1
+    assert (
+        lookup_table(192, 108, (80.0, 40.0, 110.0, 70.0), Params(), "latlong", 512).first_level == 0
+    )
