@@ -17,11 +17,14 @@ from . import compositor, generate
 ENGINES = {"CYCLES": ("CYCLES",), "EEVEE": ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")}
 
 
-def _engine_id(name):
-    items = {i.identifier for i in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+def _set_engine(scene, name):
+    """Cycles is an add-on engine, so it is missing from the built-in enum: just try the ids."""
     for ident in ENGINES[name]:
-        if ident in items:
-            return ident
+        try:
+            scene.render.engine = ident
+            return
+        except TypeError:
+            continue
     raise ValueError(f"render engine {name} is not available in this Blender")
 
 
@@ -110,7 +113,7 @@ def render_shot(args, started):
         settings.front = "CONTINUOUS" if args.triangles == 0 else "TRIANGLES"
         settings.triangles = max(4, args.triangles)
     if args.engine:
-        scene.render.engine = _engine_id(args.engine)
+        _set_engine(scene, args.engine)
     if args.samples and scene.render.engine == "CYCLES":
         scene.cycles.samples = args.samples
     elif args.samples:
