@@ -31,7 +31,9 @@ def test_build_leaves_out_tests_docs_and_benchmarks(package):
     assert "blender_manifest.toml" in names and "render_shot.py" in names
     assert "virtual_reflections/projection.py" in names and "operators/generate.py" in names
     for name in names:
-        assert not name.startswith(("tests/", "docs/", "tools/", ".ci/", ".venv")), name
+        assert not name.startswith(
+            ("tests/", "docs/", "tools/", "benchmarks/", "pipeline/", ".ci/", ".venv")
+        ), name
         assert not name.endswith(("bench.py", "pyproject.toml")), name
 
 
