@@ -1,7 +1,8 @@
 """Command line — a pipeline contract, keep it stable:
 
     python -m virtual_reflections envmap PLATE -o OUT --bbox X0 Y0 X1 Y1 [--layout latlong|cube]
-        [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG] [--float]
+        [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG]
+        [--method paper|frustum] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
     python -m virtual_reflections bench [--repeat N] [--chart PNG]
 
@@ -71,6 +72,12 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         help="minimum distance of X from the border, fraction (default 0.15)",
     )
     p.add_argument("--hfov", type=float, default=None, help="horizontal field of view (degrees)")
+    p.add_argument(
+        "--method",
+        choices=("paper", "frustum"),
+        default="paper",
+        help="paper: Ropinski et al. 2004; frustum: place the plate by --hfov",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -96,7 +103,11 @@ def _params(args) -> Params:
         raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
     try:
         return Params(
-            enlarge=args.enlarge, border=args.border, triangles=args.triangles, hfov=args.hfov
+            enlarge=args.enlarge,
+            border=args.border,
+            triangles=args.triangles,
+            hfov=args.hfov,
+            method=args.method,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from exc

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 MAX_TRIANGLES = 1024
+METHODS = ("paper", "frustum")
 
 
 @dataclass(frozen=True)
@@ -21,13 +22,20 @@ class Params:
     triangles: n triangles for the front face (a multiple of 4, 4..1024), or 0 for the
                continuous limit n -> infinity.
     hfov:      horizontal field of view of the plate's camera in degrees, or None. The
-               paper's method ignores it; it is carried for the accuracy work.
+               paper's method ignores it; the frustum method needs it.
+    method:    "paper" (Ropinski et al. 2004, §3.1–3.2) or "frustum" (frustum.py: the plate
+               placed exactly by the camera's field of view, blurred edge extension outside).
+    extend_blur, extend_cap: the frustum method's blur outside the plate's view — pixels of
+               blur per pixel of angular distance, and its cap as a share of the plate height.
     """
 
     enlarge: float = 0.075
     border: float = 0.15
     triangles: int = 0
     hfov: float | None = None
+    method: str = "paper"
+    extend_blur: float = 1.0
+    extend_cap: float = 0.125
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -44,3 +52,9 @@ class Params:
             )
         if self.hfov is not None and not (math.isfinite(self.hfov) and 0.0 < self.hfov < 180.0):
             raise ValueError(f"hfov must be between 0 and 180 degrees, got {self.hfov}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if not (0.0 <= self.extend_blur <= 100.0 and 0.0 < self.extend_cap <= 1.0):
+            raise ValueError("extend_blur must be in [0, 100] and extend_cap in (0, 1]")
+        if self.method == "frustum" and self.hfov is None:
+            raise ValueError("the frustum method needs the camera's field of view (hfov)")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import frustum
 from .layouts import map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import for_blocks
@@ -125,21 +126,36 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     np.multiply(ax, ay, out=weight[..., 3])
 
 
-def build_table(seg: Segmentation, layout: str, size: int, triangles: int = 0) -> LookupTable:
-    """Build the table for a segmentation (uncached; see `lookup_table`)."""
+def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTable:
+    """Build the table for a segmentation (uncached; see `lookup_table`). `params`: the
+    Params (or, for the paper's method, just the number of triangles)."""
+    if not isinstance(params, Params):
+        params = Params(triangles=int(params))
     shape = map_shape(layout, size)
     directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     count = directions.shape[0]
     position = np.empty((count, 2), np.float32)
 
+    blur = np.zeros(count, np.float32)
+
     def project(a, b):
-        position[a:b] = plate_positions(directions[a:b], seg, triangles)
+        if params.method == "frustum":
+            position[a:b], blur[a:b] = frustum.plate_positions(
+                directions[a:b],
+                seg.width,
+                seg.height,
+                params.hfov,
+                params.extend_blur,
+                params.extend_cap,
+            )
+        else:
+            position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
 
     for_blocks(project, count)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
-    lod = np.clip(_lod(layout, size, position), 0.0, top).ravel()
+    lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
     offsets = level_offsets(shapes, first)
@@ -173,4 +189,4 @@ def lookup_table(
 ) -> LookupTable:
     """The cached table for a W x H plate, object `bbox` (x0, y0, x1, y1), params and layout."""
     seg = segment(width, height, bbox, params)
-    return build_table(seg, layout, size, params.triangles)
+    return build_table(seg, layout, size, params)
