@@ -118,13 +118,18 @@ def generate(context, objects, progress=None) -> Report:
     plate, info = plate_pixels(scene, image)
     report.time("plate", time.perf_counter() - t)
     report.plate = info
-    params = settings.params()
     width = int(settings.resolution)
     save_dir = _save_dir(settings)
     depsgraph = context.evaluated_depsgraph_get()
     projection = bounds.camera_projection(scene)
     ph, pw = plate.shape[:2]
     sx, sy = pw / projection.width, ph / projection.height
+    params = settings.params(_intrinsics(projection, sx, sy))
+    if settings.method == "CAMERA" and params.method != "frustum":
+        report.warnings.append(
+            "orthographic camera: the camera-view method needs a "
+            "perspective camera; used the paper's method"
+        )
     if abs(sx - sy) > 0.01 * max(sx, sy):
         report.warnings.append(
             f"plate {pw}x{ph} and render {projection.width}x{projection.height} differ in "
@@ -190,6 +195,16 @@ def generate(context, objects, progress=None) -> Report:
         if progress:
             progress(len(objects) + i + 1)
     return report
+
+
+def _intrinsics(projection, sx, sy):
+    """(fx, fy, cx, cy) of a perspective camera in plate pixels, or None (orthographic)."""
+    if projection.orthographic:
+        return None
+    left, right, bottom, top = projection.frame  # on the plane z = -1
+    fx = projection.width / (right - left) * sx
+    fy = projection.height / (top - bottom) * sy
+    return (fx, fy, -left * fx, top * fy)
 
 
 def _map(plate, box, params, width, report):

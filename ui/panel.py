@@ -34,6 +34,7 @@ class VR_PT_main(bpy.types.Panel):
         row.operator("vr.undo_setup_plate", text="", icon="LOOP_BACK")
 
         col = layout.column()
+        col.prop(settings, "method")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

@@ -63,6 +63,24 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         max=45.0,
         subtype="PERCENTAGE",
     )
+    method: EnumProperty(
+        name="Method",
+        items=(
+            (
+                "PAPER",
+                "Paper (2004)",
+                "Ropinski et al.: the plate cut into regions around the "
+                "object's bounds and folded onto a cube",
+            ),
+            (
+                "CAMERA",
+                "Camera View",
+                "Place the plate exactly by the camera's field of view; "
+                "extend its edges, blurred, where the photo saw nothing",
+            ),
+        ),
+        default="PAPER",
+    )
     front: EnumProperty(name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS")
     triangles: IntProperty(
         name="Triangles",
@@ -95,12 +113,20 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
     )
     last_report: StringProperty(name="Last Run", default="")
 
-    def params(self):
-        """The engine's Params for these settings."""
+    def params(self, intrinsics=None):
+        """The engine's Params for these settings; `intrinsics` (fx, fy, cx, cy) in plate
+        pixels select the camera-view method when it is chosen (else the paper's)."""
         from ..virtual_reflections import Params
 
         n = 0 if self.front == "CONTINUOUS" else 4 * max(1, round(self.triangles / 4))
-        return Params(enlarge=self.enlarge / 100.0, border=self.border / 100.0, triangles=n)
+        camera = self.method == "CAMERA" and intrinsics is not None
+        return Params(
+            enlarge=self.enlarge / 100.0,
+            border=self.border / 100.0,
+            triangles=n,
+            method="frustum" if camera else "paper",
+            intrinsics=tuple(intrinsics) if camera else None,
+        )
 
 
 class VR_ObjectSettings(bpy.types.PropertyGroup):

@@ -23,43 +23,48 @@ import math
 import numpy as np
 
 
+def intrinsics_from_hfov(width: int, height: int, hfov_deg: float):
+    """(fx, fy, cx, cy) in plate pixels of a centred pinhole with square pixels."""
+    f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+    return f, f, width / 2.0, height / 2.0
+
+
 def plate_positions(
     directions: np.ndarray,
     width: int,
     height: int,
-    hfov_deg: float,
+    hfov_deg: float | None = None,
     blur: float = 1.0,
     max_blur: float = 0.125,
+    intrinsics=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Plate positions and extra blur for camera-frame `directions` (..., 3).
 
-    Returns ((..., 2) float32 continuous plate coordinates, (..., ) float32 mip level of the
-    blur: log2 of `blur` x (angle to the frustum in radians) x f pixels, at most
+    The camera is `intrinsics` = (fx, fy, cx, cy) in plate pixels (a shifted lens, non-square
+    pixels), or a centred pinhole of horizontal field of view `hfov_deg`. Returns
+    ((..., 2) float32 continuous plate coordinates, (...,) float32 mip level of the blur:
+    log2 of `blur` x (angle to the frustum in radians) x fx pixels, at most
     log2(max_blur x height)). Inside the frustum the blur level is 0.
     """
+    fx, fy, cx, cy = intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
     d = np.asarray(directions, dtype=np.float32)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-    half_h = math.atan((width / 2.0) / f)
-    tan_v = (height / 2.0) / f
     norm = np.sqrt(x * x + y * y + z * z)
     norm = np.where(norm > 0, norm, 1.0)
     azimuth = np.arctan2(x, z)  # + toward the plate's left
     elevation = np.arcsin(np.clip(y / norm, -1.0, 1.0))
-    a = np.clip(azimuth, -half_h, half_h)
+    a = np.clip(azimuth, math.atan((cx - width) / fx), math.atan(cx / fx))
     cos_a = np.cos(a)
-    top = np.arctan(tan_v * cos_a)  # the frame's top edge at this azimuth
-    e = np.clip(elevation, -top, top)
-    # Pinhole projection of the clamped direction (cos a > 0 inside the horizontal extent).
-    px = width / 2.0 - f * np.tan(a)
-    py = height / 2.0 - f * np.tan(e) / cos_a
+    # The frame's top and bottom edges at this azimuth: y / z = tan(e) / cos(a) = (cy - py) / fy.
+    e = np.clip(elevation, np.arctan((cy - height) / fy * cos_a), np.arctan(cy / fy * cos_a))
+    px = cx - fx * np.tan(a)
+    py = cy - fy * np.tan(e) / cos_a
     position = np.stack((np.clip(px, 0.0, width), np.clip(py, 0.0, height)), axis=-1)
     # Angle between the direction and its clamped twin.
     cos_e = np.cos(e)
     clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
     cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
-    angle = np.arccos(cosine)
-    pixels = blur * angle * f
+    pixels = blur * np.arccos(cosine) * fx
     cap = math.log2(max(max_blur * height, 1.0))
     lod = np.minimum(np.log2(np.maximum(pixels, 1.0)), cap)
     return position.astype(np.float32), lod.astype(np.float32)

@@ -27,6 +27,8 @@ class Params:
                placed exactly by the camera's field of view, blurred edge extension outside).
     extend_blur, extend_cap: the frustum method's blur outside the plate's view — pixels of
                blur per pixel of angular distance, and its cap as a share of the plate height.
+    intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
+               aspect), for the frustum method; overrides hfov.
     """
 
     enlarge: float = 0.075
@@ -36,6 +38,7 @@ class Params:
     method: str = "paper"
     extend_blur: float = 1.0
     extend_cap: float = 0.125
+    intrinsics: tuple | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -56,5 +59,12 @@ class Params:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not (0.0 <= self.extend_blur <= 100.0 and 0.0 < self.extend_cap <= 1.0):
             raise ValueError("extend_blur must be in [0, 100] and extend_cap in (0, 1]")
-        if self.method == "frustum" and self.hfov is None:
+        if self.intrinsics is not None and (
+            len(self.intrinsics) != 4
+            or not all(math.isfinite(v) for v in self.intrinsics)
+            or self.intrinsics[0] <= 0
+            or self.intrinsics[1] <= 0
+        ):
+            raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
+        if self.method == "frustum" and self.hfov is None and self.intrinsics is None:
             raise ValueError("the frustum method needs the camera's field of view (hfov)")

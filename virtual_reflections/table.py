@@ -147,6 +147,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
                 params.hfov,
                 params.extend_blur,
                 params.extend_cap,
+                params.intrinsics,
             )
         else:
             position[a:b] = plate_positions(directions[a:b], seg, params.triangles)

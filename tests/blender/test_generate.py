@@ -111,10 +111,12 @@ def test_generate_builds_maps_and_nodes(addon, tmp_path):
     assert [i.name for i in bpy.data.images if i.name.startswith("VR Map")] == ["VR Map Ball"]
 
 
-def test_chrome_sphere_shows_the_plate_on_the_correct_sides(addon, tmp_path):
+@pytest.mark.parametrize("method", ["PAPER", "CAMERA"])
+def test_chrome_sphere_shows_the_plate_on_the_correct_sides(addon, tmp_path, method):
     scene = make_scene()
     ball = add_sphere()
     scene.virtual_reflections.plate_image = red_blue_plate()
+    scene.virtual_reflections.method = method
     scene.virtual_reflections.combine = "REPLACE"
     scene.virtual_reflections.resolution = "256"
     ball.select_set(True)
@@ -230,3 +232,44 @@ def test_linked_objects_are_refused_and_left_alone(addon, tmp_path):
     assert report.done == ["Local Ball"]
     assert any("linked" in w and "Linked Ball" in w for w in report.warnings)
     assert linked.material_slots[0].link == "DATA" and "VR Map Linked Ball" not in bpy.data.images
+
+
+def test_camera_method_places_the_plate_where_the_camera_saw_it(addon):
+    """With the camera-view method, the map texel looking through a plate pixel holds that
+    pixel, also with a shifted lens (the intrinsics come from the Blender camera)."""
+    from vr_addon_under_test.operators import generate
+    from vr_addon_under_test.virtual_reflections.layouts import texel_directions
+
+    scene = make_scene(64, 48)
+    scene.camera.data.shift_x = 0.1
+    ball = add_sphere()
+    plate = bpy.data.images.new("Ramp", 64, 48, alpha=False, float_buffer=True)
+    py, px = np.mgrid[0:48, 0:64]
+    pixels = np.ones((48, 64, 4), np.float32)
+    pixels[..., 0], pixels[..., 1] = px / 63.0, py / 47.0  # top-row-first coordinates
+    plate.pixels.foreach_set(pixels[::-1].ravel())
+    settings = scene.virtual_reflections
+    settings.plate_image, settings.method, settings.resolution = plate, "CAMERA", "1024"
+    report = generate.generate(bpy.context, [ball])
+    assert report.done == ["Ball"]
+    image = bpy.data.images["VR Map Ball"]
+    w, h = image.size
+    env = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(env)
+    env = env.reshape(h, w, 4)[::-1]
+    d = texel_directions("latlong", w)
+    # Project every texel direction through the Blender camera and keep those inside the frame.
+    cam = scene.camera
+    # The camera frame is Blender's camera-local frame rotated 180 degrees about Y.
+    blender_cam = np.stack([-d[..., 0], d[..., 1], -d[..., 2]], -1)
+    frame = [v for v in cam.data.view_frame(scene=scene)]
+    xs = [v.x / -v.z for v in frame]
+    ys = [v.y / -v.z for v in frame]
+    u = blender_cam[..., 0] / -blender_cam[..., 2]
+    v = blender_cam[..., 1] / -blender_cam[..., 2]
+    fpx = (u - min(xs)) / (max(xs) - min(xs)) * 64
+    fpy = (max(ys) - v) / (max(ys) - min(ys)) * 48
+    inside = (blender_cam[..., 2] < 0) & (fpx > 2) & (fpx < 62) & (fpy > 2) & (fpy < 46)
+    assert inside.sum() > 1000
+    assert np.abs(env[inside, 0] - (fpx[inside] - 0.5) / 63.0).max() < 0.02
+    assert np.abs(env[inside, 1] - (fpy[inside] - 0.5) / 47.0).max() < 0.02

@@ -59,3 +59,13 @@ def test_frustum_needs_the_field_of_view():
         Params(method="frustum")
     with pytest.raises(ValueError, match="method"):
         Params(method="magic")
+
+
+def test_shifted_lens_and_non_square_pixels():
+    w, h = 200, 100
+    fx, fy, cx, cy = 150.0, 120.0, 130.0, 40.0  # principal point off-centre
+    py, px = np.mgrid[0:h, 0:w] + 0.5
+    d = np.stack([-(px - cx) / fx, -(py - cy) / fy, np.ones_like(px)], -1)
+    pos, lod = plate_positions(d, w, h, intrinsics=(fx, fy, cx, cy))
+    assert np.abs(pos[..., 0] - px).max() < 1e-3 and np.abs(pos[..., 1] - py).max() < 1e-3
+    assert lod.max() == 0.0
