@@ -4,9 +4,9 @@ they are composited into (Ropinski, Wachenfeld & Hinrichs 2004).
 Only wiring lives here: submodules register in order and unregister in reverse.
 """
 
-from . import operators, ui
+from . import operators, preferences, ui
 
-_modules = (operators, ui)
+_modules = (operators, ui, preferences)
 
 
 def register():

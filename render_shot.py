@@ -1,14 +1,25 @@
-"""Headless batch entry: render a shot's frame with virtual reflections and the composite.
+"""Headless batch entry: render a shot with virtual reflections and composite it over the plate.
 
     blender -b shot.blend --python <extension>/render_shot.py -- --plate PLATE --out DIR
     python -m render_shot shot.blend --plate PLATE --out DIR        (bpy module, repo root)
 
+One frame (a still plate, no --frames): writes DIR/<shot>_render.exr (RGBA, linear),
+DIR/<shot>_composite.png (sRGB) and .exr (linear), one line per stage with its time.
+
+A frame range (--frames 1-240, 1-10x2, 5, 1,3,7-9; or a plate that is a sequence
+plate.####.exr / plate.%04d.jpg or a movie, then the scene's range by default): per frame the
+maps from that frame's plate, DIR/<shot>.<frame:04d>.exr|png (--format), a progress line,
+and the report DIR/<shot>.report.json (--report PATH) rewritten after each frame. Frames
+already complete are skipped unless --overwrite; every file is written under a temporary
+name and renamed, so a killed run leaves no half-written frame and resumes where it stopped.
+
 Options: --objects NAME [NAME ...] (default: marked objects, else every visible mesh-like
 object), --combine REPLACE|MODULATE|MIX|WORLD, --resolution W, --triangles N, --frame F,
---engine CYCLES|EEVEE, --samples N, --scale PERCENT, --no-reflections (the plain render, for
-comparisons). Writes DIR/<shot>_render.exr (RGBA, linear), DIR/<shot>_composite.png (sRGB)
-and .exr (linear), and prints one line per stage with its time. Bad input: one line on
-stderr and exit code 2.
+--engine CYCLES|EEVEE, --samples N, --scale PERCENT, --smoothing S (bounds over frames, 0..1),
+--passes N|auto (inter-reflections between the objects, paper §3.3: N render passes, or until
+the image settles; --tolerance T, --max-passes N), --no-reflections (the plain render, for
+comparisons), --name STEM. Bad input (a bad range, a missing plate frame, an unwritable
+folder): one line on stderr, exit code 2, nothing written.
 """
 
 import argparse
@@ -37,8 +48,32 @@ def _addon():
     return module, True
 
 
+def _passes(text):
+    if text == "auto":
+        return text
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a number of passes >= 1 or auto, not {text!r}")
+    return int(text)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line on stderr, not the usage block
+        print(f"render_shot: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _unit(text):
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value <= 0.95:
+        raise argparse.ArgumentTypeError(f"expected a number from 0 to 0.95, not {text!r}")
+    return value
+
+
 def parse(argv):
-    p = argparse.ArgumentParser(prog="render_shot", description=__doc__.splitlines()[0])
+    p = _Parser(prog="render_shot", description=__doc__.splitlines()[0])
     p.add_argument("blend", nargs="?", help="the shot (.blend); omit under blender -b shot.blend")
     p.add_argument("--plate", required=True, help="background plate image file")
     p.add_argument("--out", required=True, help="output folder (created)")
@@ -46,12 +81,29 @@ def parse(argv):
     p.add_argument("--combine", choices=("REPLACE", "MODULATE", "MIX", "WORLD"), default=None)
     p.add_argument("--resolution", type=int, default=None, help="lat-long map width")
     p.add_argument("--triangles", type=int, default=None, help="0 = continuous")
+    p.add_argument(
+        "--method",
+        choices=("camera", "paper"),
+        default=None,
+        help="camera: the plate placed by the camera's field of view; paper: Ropinski et al. "
+        "(default: the shot's setting)",
+    )
     p.add_argument("--frame", type=int, default=None)
     p.add_argument("--engine", choices=("CYCLES", "EEVEE"), default=None)
     p.add_argument("--samples", type=int, default=None)
     p.add_argument("--scale", type=int, default=None, help="resolution percentage")
+    p.add_argument(
+        "--passes", type=_passes, default=1, help="inter-reflection passes r, or auto (default 1)"
+    )
+    p.add_argument("--tolerance", type=float, default=None, help="--passes auto: stop below")
+    p.add_argument("--max-passes", type=int, default=None, help="--passes auto: at most")
     p.add_argument("--no-reflections", action="store_true")
     p.add_argument("--name", default=None, help="output file stem (default: the .blend's name)")
+    p.add_argument("--frames", default=None, help="1-240, 1-10x2, 5 or 1,3,7-9")
+    p.add_argument("--format", choices=("exr", "png"), default="exr", help="frame range output")
+    p.add_argument("--overwrite", action="store_true", help="render complete frames again")
+    p.add_argument("--report", default=None, help="report path (default DIR/<name>.report.json)")
+    p.add_argument("--smoothing", type=_unit, default=None, help="bounds smoothing 0..0.95")
     return p.parse_args(argv)
 
 
@@ -69,7 +121,7 @@ def main(argv=None):
         return run(bpy, addon, own, args)
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"render_shot: error: {str(exc).strip().splitlines()[0]}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return getattr(exc, "exit_code", EXIT_BAD_INPUT)  # 1: a frame failed mid-run
 
 
 def run(bpy, addon, own, args):

@@ -1,8 +1,8 @@
 """Everything that touches bpy data: bounds, images, node groups, renders."""
 
-from . import generate, maps
+from . import generate, interreflect, live, maps, previews, sequence
 
-_modules = (maps, generate)
+_modules = (maps, generate, interreflect, sequence, live, previews)
 
 
 def register():

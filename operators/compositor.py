@@ -27,6 +27,7 @@ Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
 `undo_setup_from_plate` restores it and removes only what setup added.
 """
 
+import contextlib
 import json
 import os
 
@@ -67,6 +68,10 @@ def _loaded_size(image) -> tuple[int, int]:
     path = _disk_path(image)
     if path is not None and not os.path.exists(path):
         raise ValueError(f"Plate image '{image.name}': file not found: {path}")
+    if image.source in {"SEQUENCE", "MOVIE"} and path is not None:
+        from . import sequence  # a frame's size: Image.size shows no frame until one is loaded
+
+        return sequence.frame_size(image)
     width, height = image.size  # loads the file on first access
     if not image.has_data:  # nothing in memory, so reload() loses nothing
         image.reload()
@@ -298,8 +303,16 @@ def _new_node(tree, kind, name, location):
 def _plate_node(tree, image, location):
     node = _new_node(tree, "CompositorNodeImage", "Plate", location)
     node.image = image
-    if image.source in {"MOVIE", "SEQUENCE"}:  # simple: the clip from frame 1, auto-refreshed
-        node.frame_duration = image.frame_duration
+    if image.source in {"MOVIE", "SEQUENCE"}:  # the whole clip from scene frame 1, refreshed
+        count = image.frame_duration
+        path = _disk_path(image)
+        if image.source == "SEQUENCE" and path is not None:
+            from . import sequence
+
+            with contextlib.suppress(ValueError):  # no number in the name: Blender's count
+                first, count = sequence.sequence_range(path)
+                node.frame_offset = first - 1
+        node.frame_duration = max(count, 1)
         node.use_auto_refresh = True
     return node
 

@@ -6,7 +6,6 @@ bounds (bounds.py) -> the engine's cached table and one gather (virtual_reflecti
 image (maps.py) -> a node group on object-level material copies, or a world (shading.py).
 """
 
-import os
 import time
 from dataclasses import dataclass, field
 
@@ -43,6 +42,7 @@ _plate_cache = {}
 
 def _plate_key(image, scene):
     return (
+        image.session_uid,  # a new image under an old name is a new plate
         image.name_full,
         tuple(image.size),
         image.filepath,
@@ -54,12 +54,26 @@ def _plate_key(image, scene):
 
 def plate_pixels(scene, image):
     """(H, W, 3) float32 linear pixels and an info line for the scene's plate, cached."""
+    if image.source in {"SEQUENCE", "MOVIE"}:  # the scene frame's plate (sequence.py)
+        from . import sequence
+
+        return sequence.image_pixels(scene, image)
     key = _plate_key(image, scene)
     hit = _plate_cache.get(key)
     if hit is None:
         _plate_cache.clear()
         hit = _plate_cache[key] = compositor.plate_image_pixels(image)
     return hit
+
+
+def camera_and_plate(scene):
+    """The scene's plate image; ValueError (one line) without a camera or a plate."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera")
+    image = compositor.scene_plate(scene)
+    if image is None:
+        raise ValueError("no plate: pick a plate image or give the camera a background image")
+    return image
 
 
 def clear_plate_cache():
@@ -95,30 +109,85 @@ def why_not_generate(context):
 def _save_dir(settings):
     if not settings.save_maps:
         return None
-    if not bpy.data.filepath:
-        raise ValueError("save the .blend first to save maps beside it (or pack them)")
-    return os.path.join(os.path.dirname(bpy.path.abspath(bpy.data.filepath)), "vr_maps")
+    from .. import preferences  # beside the .blend, or the extension's user folder
+
+    return preferences.maps_folder()
 
 
-def generate(context, objects, progress=None) -> Report:
+# --- sensible defaults: map size and advice ------------------------------------------------
+
+WIDTHS = (256, 512, 1024, 2048, 4096)  # the resolution enum's sizes
+AUTO_PER_PIXEL = 1.6  # map pixels per screen pixel of the object (auto_width)
+LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
+
+
+def auto_width(extent) -> int:
+    """Lat-long width for an object ``extent`` render pixels across on screen.
+
+    A mirror sphere D pixels across turns directions twice as fast as its normals, so near its
+    centre it shows D/4 screen pixels per radian; a lat-long map W wide has W/2π texels per
+    radian: W ≈ 1.6 D keeps a texel per pixel. Rounded up to the next size offered.
+    """
+    need = AUTO_PER_PIXEL * max(float(extent), 0.0)
+    return next((w for w in WIDTHS if w >= need), WIDTHS[-1])
+
+
+def map_width(resolution: str, extent=None) -> int:
+    """The width for the resolution setting ("AUTO" or a number as text); Auto without an
+    extent gives 1024."""
+    if resolution != "AUTO":
+        return int(resolution)
+    return 1024 if extent is None else auto_width(extent)
+
+
+def screen_extent(box) -> float:
+    """The larger side of a ScreenBounds cut to the frame, in render pixels."""
+    w = min(box.x1, box.width) - max(box.x0, 0.0)
+    h = min(box.y1, box.height) - max(box.y0, 0.0)
+    return max(w, h, 0.0)
+
+
+def fit_warnings(name, seg, paper=True) -> list:
+    """Advice (not errors) for an object's segmentation: region X had to shrink below its
+    bounds near a border (paper §3.2; only with the paper's method), or the object covers so
+    much of the plate that little is left around it to reflect."""
+    out = []
+    if paper and seg.shrunk:
+        out.append(
+            f"{name} is so close to the plate's border that region X is smaller than its "
+            "bounds: the reflection behind it is cropped"
+        )
+    b = seg.bbox
+    w = min(b.x1, seg.width) - max(b.x0, 0.0)
+    h = min(b.y1, seg.height) - max(b.y0, 0.0)
+    share = max(w, 0.0) * max(h, 0.0) / (seg.width * seg.height)
+    if share > LARGE_SHARE:
+        out.append(
+            f"{name} covers {share:.0%} of the plate: little is left around it to reflect "
+            "(move the camera back or use a wider plate)"
+        )
+    return out
+
+
+def generate(context, objects, progress=None, plate=None) -> Report:
     """Build each object's map from the plate and wire it in; returns a Report.
 
+    ``plate``: (H, W, 3) float32 scene-linear pixels, the plate's size, to build the maps from
+    instead of the plate's own (interreflect.py: the previous pass's composite).
     Raises ValueError (one line) when nothing can be done: no camera, no or bad plate.
     Per-object problems (off-screen, linked data, no geometry) become warnings.
     """
     scene = context.scene
     settings = scene.virtual_reflections
     report = Report()
-    if scene.camera is None:
-        raise ValueError("the scene has no camera")
-    image = compositor.scene_plate(scene)
-    if image is None:
-        raise ValueError("no plate: pick a plate image or give the camera a background image")
+    image = camera_and_plate(scene)
     t = time.perf_counter()
-    plate, info = plate_pixels(scene, image)
+    if plate is None:
+        plate, info = plate_pixels(scene, image)
+    else:
+        info = f"{plate.shape[1]}x{plate.shape[0]} pixels given for plate '{image.name}'"
     report.time("plate", time.perf_counter() - t)
     report.plate = info
-    width = int(settings.resolution)
     save_dir = _save_dir(settings)
     depsgraph = context.evaluated_depsgraph_get()
     projection = bounds.camera_projection(scene)
@@ -136,7 +205,7 @@ def generate(context, objects, progress=None) -> Report:
             "aspect: use Set Up From Plate"
         )
 
-    boxes = {}
+    boxes, widths = {}, {}
     for i, obj in enumerate(objects):
         t = time.perf_counter()
         try:
@@ -150,13 +219,14 @@ def generate(context, objects, progress=None) -> Report:
             report.warnings.append(f"{obj.name} is outside the camera view: skipped")
             continue
         boxes[obj] = (box.x0 * sx, box.y0 * sy, box.x1 * sx, box.y1 * sy)
+        widths[obj] = map_width(settings.resolution, screen_extent(box))
         if progress:
             progress(i + 0.5)
 
     if settings.combine == "WORLD" and boxes:
         # One shared, camera-aligned world map from the union of the objects' bounds.
         union = tuple(f(v[k] for v in boxes.values()) for k, f in enumerate((min, min, max, max)))
-        env = _map(plate, union, params, width, report)
+        env = _map(plate, union, params, max(widths.values()), report, "World")
         t = time.perf_counter()
         image_map = maps.store_map(maps.map_name("World"), env, save_dir)
         report.time("image", time.perf_counter() - t)
@@ -176,7 +246,7 @@ def generate(context, objects, progress=None) -> Report:
         if obj.library is not None or obj.override_library is not None:
             report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
             continue
-        env = _map(plate, box, params, width, report)
+        env = _map(plate, box, params, widths[obj], report, obj.name)
         t = time.perf_counter()
         image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         report.time("image", time.perf_counter() - t)
@@ -207,15 +277,12 @@ def _intrinsics(projection, sx, sy):
     return (fx, fy, -left * fx, top * fy)
 
 
-def _map(plate, box, params, width, report):
+def _map(plate, box, params, width, report, name="an object"):
     h, w = plate.shape[:2]
     t = time.perf_counter()
     table = lookup_table(w, h, tuple(float(v) for v in box), params, "latlong", width)
     report.time("table", time.perf_counter() - t)
-    if table.segmentation.shrunk:
-        report.warnings.append(
-            "an object is so close to the border that region X is smaller than its bounds"
-        )
+    report.warnings.extend(fit_warnings(name, table.segmentation, params.method == "paper"))
     t = time.perf_counter()
     env = apply_table(table, plate)
     report.time("gather", time.perf_counter() - t)

@@ -23,12 +23,39 @@ def _set_linear(image):
     }
     for name in LINEAR:
         if name in names:
-            image.colorspace_settings.name = name
+            if image.colorspace_settings.name != name:
+                image.colorspace_settings.name = name
             return
+
+
+_versions = {}  # image name -> how often its pixels were written this session (previews.py)
+
+
+def touch(image):
+    """Note that ``image``'s pixels changed (previews follow the count)."""
+    _versions[image.name_full] = _versions.get(image.name_full, 0) + 1
+
+
+def version(image) -> int:
+    return _versions.get(image.name_full, 0)
 
 
 def map_name(owner_name: str) -> str:
     return f"{MAP_PREFIX}{owner_name}"
+
+
+def write_pixels(image, env: np.ndarray):
+    """Write an (H, W, 3) float32 linear map into ``image`` in place (resized if needed), and
+    nothing else: no file saved, no packing flag set."""
+    h, w = env.shape[:2]
+    if tuple(image.size) != (w, h):
+        if image.source == "GENERATED":
+            image.generated_width, image.generated_height = w, h
+        else:
+            image.scale(w, h)
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., :3] = env[::-1]  # Blender stores rows bottom-up
+    image.pixels.foreach_set(rgba.ravel())
 
 
 def store_map(name: str, env: np.ndarray, save_dir: str | None = None):
@@ -42,16 +69,14 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None):
     image = bpy.data.images.get(name)
     if image is not None and image.get(CREATED) != "map":
         raise ValueError(f"an image named {name!r} exists and is not ours; rename it")
-    if image is not None and tuple(image.size) != (w, h):
-        image.scale(w, h)
     if image is None:
         image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
         image[CREATED] = "map"
         image.use_fake_user = True  # kept with the .blend even while no material uses it
+    # Setting the colour space (even to its current value) regenerates a generated image's
+    # buffer at its generated size, so it comes before any resize, and only when needed.
     _set_linear(image)
-    rgba = np.ones((h, w, 4), dtype=np.float32)
-    rgba[..., :3] = env[::-1]
-    image.pixels.foreach_set(rgba.ravel())
+    write_pixels(image, env)
     image.file_format = "OPEN_EXR"
     if save_dir:
         os.makedirs(save_dir, exist_ok=True)
@@ -63,6 +88,7 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None):
     else:
         image[NEEDS_PACK] = True  # packed when the .blend is saved (pack_pending)
     image.update()
+    touch(image)
     return image
 
 
@@ -91,8 +117,8 @@ def unregister():
 
 
 def remove_maps():
-    """Delete every map image the add-on created; returns how many."""
-    ours = [image for image in bpy.data.images if image.get(CREATED) == "map"]
+    """Delete every map (and segmentation picture) the add-on created; returns how many."""
+    ours = [image for image in bpy.data.images if image.get(CREATED) in ("map", "overlay")]
     for image in ours:
         bpy.data.images.remove(image)
     return len(ours)

@@ -1,8 +1,8 @@
 """Panels and properties of the N-panel tab."""
 
-from . import panel, properties
+from . import panel, presets, properties
 
-_modules = (properties, panel)
+_modules = (properties, presets, panel)
 
 
 def register():

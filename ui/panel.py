@@ -1,20 +1,39 @@
-"""The N-panel tab "Reflections" in the 3D viewport."""
+"""The N-panel tab "Reflections" in the 3D viewport.
+
+The main panel holds the workflow top to bottom (plate, look, Generate, live update); the
+sub-panels hold what an artist opens less often: the active object's previews, the method's
+parameters, shading, and maps & animation.
+"""
+
+import textwrap
 
 import bpy
 
-from ..operators import generate
+from ..operators import generate, live, previews
+from . import presets
 
 
-class VR_PT_main(bpy.types.Panel):
-    bl_label = "Virtual Reflections"
-    bl_idname = "VR_PT_main"
+def _wrapped(layout, text, context, icon="NONE"):
+    """A long line as several labels that fit the sidebar (labels do not wrap)."""
+    chars = max(20, int(context.region.width / (7 * context.preferences.system.ui_scale)))
+    for i, line in enumerate(textwrap.wrap(text, chars - 4)):
+        layout.label(text=line, icon=icon if i == 0 else "BLANK1")
+
+
+class _Tab:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Reflections"
 
+
+class VR_PT_main(_Tab, bpy.types.Panel):
+    bl_label = "Virtual Reflections"
+    bl_idname = "VR_PT_main"
+
     def draw(self, context):
         layout = self.layout
-        settings = context.scene.virtual_reflections
+        scene = context.scene
+        settings = scene.virtual_reflections
         layout.use_property_split = True
         layout.use_property_decorate = False
 
@@ -22,7 +41,7 @@ class VR_PT_main(bpy.types.Panel):
         box.label(text="Plate", icon="IMAGE_BACKGROUND")
         box.template_ID(settings, "plate_image", open="image.open")
         if settings.plate_image is None:
-            plate = generate.compositor.scene_plate(context.scene)
+            plate = generate.compositor.scene_plate(scene)
             box.label(
                 text=f"Using camera background: {plate.name}"
                 if plate
@@ -33,8 +52,86 @@ class VR_PT_main(bpy.types.Panel):
         row.operator("vr.setup_plate", icon="CAMERA_DATA")
         row.operator("vr.undo_setup_plate", text="", icon="LOOP_BACK")
 
+        col = layout.column(align=True)
+        col.label(text="Look")
+        presets.draw_buttons(col, settings)
+
+        col = layout.column(align=True)
+        col.scale_y = 1.4
+        col.operator("vr.generate", icon="MATSPHERE")
+        row = col.row(align=True)
+        row.scale_y = 1 / 1.4
+        row.operator("vr.remove", icon="X")
+        row.operator("vr.render_passes", icon="RENDER_STILL", text="Inter-Reflections")
+
+        row = layout.row()
+        row.use_property_split = False
+        row.prop(settings, "live_update", icon="RECOVER_LAST", toggle=True)
+        line = live.status(scene) if settings.live_update else ""
+        if not line and settings.last_report:  # "n reflection(s) in t ms (stages)": the gist
+            line = settings.last_report.split(" (")[0]
+        if line:
+            layout.label(text=line, icon="TIME")
+
+
+class VR_PT_object(_Tab, bpy.types.Panel):
+    bl_label = ""  # the header shows the object's name
+    bl_idname = "VR_PT_object"
+    bl_parent_id = "VR_PT_main"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type in generate.REFLECTABLE
+
+    def draw_header(self, context):
+        self.layout.label(text=context.active_object.name, icon="OBJECT_DATA")
+
+    def draw(self, context):
+        layout = self.layout
+        scene, obj = context.scene, context.active_object
+        layout.prop(obj.virtual_reflections, "enabled", text="Reflect the Plate (Mark)")
+        shown = previews.for_object(scene, obj)
+        if shown["image"] is None:
+            layout.label(text="Generate to see how the plate is cut", icon="INFO")
+            return
+        image = shown["image"]
+        row = layout.row(align=True)
+        row.label(text="Segmentation")
+        op = row.operator("vr.show_image", text="", icon="WINDOW", emboss=False)
+        op.kind, op.object = "SEGMENTATION", obj.name
+        row.label(text=f"Map {image.size[0]} x {image.size[1]}")
+        op = row.operator("vr.show_image", text="", icon="WINDOW", emboss=False)
+        op.kind, op.object = "MAP", obj.name
+        if shown["both"] is not None:
+            # As wide as the sidebar: UI units are 20 pixels times the interface scale.
+            unit = 20 * context.preferences.system.ui_scale
+            scale = max(6.0, (context.region.width - 2 * unit) / unit)
+            layout.template_icon(icon_value=shown["both"].icon_id, scale=scale)
+        else:
+            layout.label(text="No plate to show", icon="ERROR")
+        if getattr(scene.virtual_reflections, "method", "PAPER") != "PAPER":
+            layout.label(text="Regions: the paper's (Camera View does not use them)")
+        for line in shown["advice"]:
+            col = layout.column(align=True)
+            col.alert = True
+            _wrapped(col, line, context, icon="ERROR")
+
+
+class VR_PT_method(_Tab, bpy.types.Panel):
+    bl_label = "Method"
+    bl_idname = "VR_PT_method"
+    bl_parent_id = "VR_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.virtual_reflections
         col = layout.column()
-        col.prop(settings, "method")
+        if hasattr(settings, "method"):
+            col.prop(settings, "method")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")
@@ -42,25 +139,61 @@ class VR_PT_main(bpy.types.Panel):
         sub.active = settings.front == "TRIANGLES"
         sub.prop(settings, "triangles")
         col.prop(settings, "resolution")
-        col.separator()
+        if settings.resolution == "AUTO":
+            obj = context.active_object
+            image = previews.map_image(obj)
+            if image is not None:
+                col.label(text=f"{image.size[0]} x {image.size[1]} for {obj.name}")
+
+
+class VR_PT_shading(_Tab, bpy.types.Panel):
+    bl_label = "Shading"
+    bl_idname = "VR_PT_shading"
+    bl_parent_id = "VR_PT_main"
+
+    def draw_header_preset(self, context):
+        self.layout.menu(presets.VR_MT_presets.bl_idname, text="", icon="PRESET")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.virtual_reflections
+        col = layout.column()
         col.prop(settings, "combine")
         col.prop(settings, "strength")
         sub = col.column()
         sub.active = settings.combine == "MIX"
         sub.prop(settings, "ior")
+
+
+class VR_PT_output(_Tab, bpy.types.Panel):
+    bl_label = "Maps & Animation"
+    bl_idname = "VR_PT_output"
+    bl_parent_id = "VR_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.virtual_reflections
+        col = layout.column()
         col.prop(settings, "save_maps")
+        if settings.save_maps:
+            from .. import preferences
 
-        obj = context.active_object
-        if obj is not None and obj.type in generate.REFLECTABLE:
-            layout.prop(obj.virtual_reflections, "enabled", text=f"Mark {obj.name}")
+            try:
+                where = preferences.maps_folder(create=False)
+            except ValueError as exc:
+                where = str(exc)
+            col.label(text=where, icon="FILE_FOLDER")
+        if hasattr(settings, "sequence"):  # operators/sequence.py: plates that are sequences
+            col.prop(settings, "sequence", text="Update Every Frame")
+            sub = col.column()
+            sub.active = settings.sequence
+            sub.prop(settings, "smoothing")
 
-        col = layout.column(align=True)
-        col.scale_y = 1.4
-        col.operator("vr.generate", icon="MATSPHERE")
-        col.operator("vr.remove", icon="X")
-        if settings.last_report:
-            layout.label(text=settings.last_report, icon="TIME")
 
-
-classes = (VR_PT_main,)
+classes = (VR_PT_main, VR_PT_object, VR_PT_method, VR_PT_shading, VR_PT_output)
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -33,19 +33,33 @@ FRONT_ITEMS = (
     ),
     ("TRIANGLES", "Triangles", "The paper's n triangles cut from the outer ring"),
 )
-RESOLUTION_ITEMS = tuple(
+RESOLUTION_ITEMS = (
+    (
+        "AUTO",
+        "Auto",
+        "From the object's size on screen: about 1.6 map pixels per pixel it covers, rounded up "
+        "to the next size below (256 to 4096)",
+    ),
+) + tuple(
     (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
     for w in (256, 512, 1024, 2048, 4096)
 )
 
 
+def _shaping_changed(settings, context):
+    """Settings that shape a map changed: live update (operators/live.py) follows."""
+    _live().on_shaping_changed(settings, context)
+
+
 class VR_SceneSettings(bpy.types.PropertyGroup):
     plate_image: PointerProperty(
+        update=_shaping_changed,
         name="Plate",
         type=bpy.types.Image,
         description="Background photograph; empty: the active camera's background image",
     )
     enlarge: FloatProperty(
+        update=_shaping_changed,
         name="Enlargement",
         description="Grow the object's screen bounds by this share of the image size (region X)",
         default=7.5,
@@ -56,6 +70,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         subtype="PERCENTAGE",
     )
     border: FloatProperty(
+        update=_shaping_changed,
         name="Border Distance",
         description="Keep region X at least this share of the image size away from its edges",
         default=15.0,
@@ -64,6 +79,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         subtype="PERCENTAGE",
     )
     method: EnumProperty(
+        update=_shaping_changed,
         name="Method",
         items=(
             (
@@ -81,8 +97,11 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         ),
         default="PAPER",
     )
-    front: EnumProperty(name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS")
+    front: EnumProperty(
+        name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed
+    )
     triangles: IntProperty(
+        update=_shaping_changed,
         name="Triangles",
         description="n triangles for the front face (a multiple of 4)",
         default=32,
@@ -90,7 +109,9 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         max=1024,
         step=4,
     )
-    resolution: EnumProperty(name="Resolution", items=RESOLUTION_ITEMS, default="1024")
+    resolution: EnumProperty(
+        name="Resolution", items=RESOLUTION_ITEMS, default="1024", update=_shaping_changed
+    )
     combine: EnumProperty(name="Combine", items=COMBINE_ITEMS, default="REPLACE")
     strength: FloatProperty(
         name="Strength",
@@ -107,11 +128,42 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         max=4.0,
     )
     save_maps: BoolProperty(
-        name="Save Maps Beside .blend",
-        description="Save maps as EXR files in a vr_maps folder beside the .blend, not packed",
+        name="Save Maps as Files",
+        description="Save maps as EXR files (in a vr_maps folder beside the .blend, or where the "
+        "extension's preferences say) instead of packing them into the .blend",
         default=False,
     )
+    live_update: BoolProperty(
+        name="Live Update",
+        description="Rebuild a reflective object's map while it moves, turns, scales or its mesh "
+        "is edited: a quick small map during the drag, the full one once it rests",
+        default=False,
+        update=lambda settings, context: _live().on_setting_changed(settings, context),
+    )
+    defaults_applied: BoolProperty(
+        name="Preference Defaults Applied",
+        description="The extension's preferred defaults were copied into this scene",
+        default=False,
+        options={"HIDDEN"},
+    )
     last_report: StringProperty(name="Last Run", default="")
+    sequence: BoolProperty(
+        name="Update Every Frame",
+        description="Rebuild the maps of the objects with a reflection on every frame change and "
+        "rendered frame, from that frame's plate (image sequences, movies) and bounds; locks the "
+        "interface during renders",
+        default=False,
+        update=lambda settings, context: _sequence().on_setting_changed(settings, context),
+    )
+    smoothing: FloatProperty(
+        name="Bounds Smoothing",
+        description="Smooth the objects' screen bounds over frames so the maps do not flicker: "
+        "0 off, 0.5 about 3 frames, 0.9 about 19 (a moving object's map lags behind more)",
+        default=0.5,
+        min=0.0,
+        max=0.95,
+        subtype="FACTOR",
+    )
 
     def params(self, intrinsics=None):
         """The engine's Params for these settings; `intrinsics` (fx, fy, cx, cy) in plate
@@ -127,6 +179,25 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
             method="frustum" if camera else "paper",
             intrinsics=tuple(intrinsics) if camera else None,
         )
+
+    def map_width(self, extent=None):
+        """The lat-long map width for an object ``extent`` render pixels wide or high on
+        screen: the chosen resolution, or with Auto one from the extent (1024 without one)."""
+        from ..operators import generate
+
+        return generate.map_width(self.resolution, extent)
+
+
+def _live():
+    from ..operators import live
+
+    return live
+
+
+def _sequence():
+    from ..operators import sequence
+
+    return sequence
 
 
 class VR_ObjectSettings(bpy.types.PropertyGroup):

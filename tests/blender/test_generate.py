@@ -1,21 +1,14 @@
 """Generate / Remove on real scenes: datablocks, renders, restoration, undo and bad input."""
 
-import math
-
 import bpy
 import numpy as np
 import pytest
+from shots import add_camera
 
 
 def make_scene(width=64, height=48):
     scene = bpy.context.scene
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    cam.location = (0.0, -6.0, 0.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looks along +Y, Z up
-    scene.render.resolution_x, scene.render.resolution_y = width, height
-    scene.render.resolution_percentage = 100
+    add_camera(scene, size=(width, height))  # on -Y looking along +Y, Z up
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 4
     scene.cycles.device = "CPU"
@@ -273,3 +266,29 @@ def test_camera_method_places_the_plate_where_the_camera_saw_it(addon):
     assert inside.sum() > 1000
     assert np.abs(env[inside, 0] - (fpx[inside] - 0.5) / 63.0).max() < 0.02
     assert np.abs(env[inside, 1] - (fpy[inside] - 0.5) / 47.0).max() < 0.02
+
+
+def test_a_new_plate_under_an_old_name_is_read_again(addon):
+    """The plate cache must not hand back the pixels of a removed image whose replacement has
+    the same name, size and (empty) file path."""
+    scene = make_scene()
+    ball = add_sphere()
+    settings = scene.virtual_reflections
+    settings.resolution = "256"
+    settings.plate_image = red_blue_plate()
+    bpy.ops.object.select_all(action="DESELECT")
+    ball.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    bpy.data.images.remove(bpy.data.images["Plate"])
+    green = bpy.data.images.new("Plate", 64, 48, alpha=False, float_buffer=True)
+    px = np.zeros((48, 64, 4), np.float32)
+    px[..., 1] = px[..., 3] = 1.0
+    green.pixels.foreach_set(px.ravel())
+    green.pack()
+    settings.plate_image = green
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    image = bpy.data.images["VR Map Ball"]
+    rgb = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(rgb)
+    mean = rgb.reshape(-1, 4)[:, :3].mean(0)
+    assert mean[1] > 0.9 and mean[0] < 0.05 and mean[2] < 0.05, mean

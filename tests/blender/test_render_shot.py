@@ -1,6 +1,5 @@
 """The headless batch entry through the bpy module: `python -m render_shot ...`."""
 
-import math
 import pathlib
 import subprocess
 import sys
@@ -8,6 +7,7 @@ import sys
 import bpy
 import numpy as np
 import pytest
+from shots import add_camera
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PLATE = ROOT / "sample_scenes/plates/courtyard.jpg"
@@ -16,11 +16,7 @@ PLATE = ROOT / "sample_scenes/plates/courtyard.jpg"
 @pytest.fixture
 def shot(clean_file, tmp_path):
     scene = bpy.context.scene
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    cam.location = (0.0, -6.0, 0.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    add_camera(scene)
     bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 2
@@ -79,3 +75,21 @@ def test_render_shot_bad_input(shot, tmp_path, args, message):
     assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
     errors = [x for x in r.stderr.splitlines() if x.startswith("render_shot: error")]
     assert len(errors) == 1 and message in errors[0], r.stderr[-2000:]
+
+
+def test_method_option_sets_the_scene_method(addon, tmp_path):
+    """--method picks the camera-view or the paper's method; without it the shot's own stays."""
+    import importlib
+
+    batch = importlib.import_module(f"{addon.__name__}.operators.batch")
+    render_shot = importlib.import_module("render_shot")
+    settings = bpy.context.scene.virtual_reflections
+    base = ["--plate", str(PLATE), "--out", str(tmp_path)]
+    for given, expected in (("paper", "PAPER"), ("camera", "CAMERA")):
+        batch._configure(bpy.context.scene, render_shot.parse([*base, "--method", given]))
+        assert settings.method == expected
+    batch._configure(bpy.context.scene, render_shot.parse(base))
+    assert settings.method == "CAMERA"
+    with pytest.raises(SystemExit) as bad:
+        render_shot.parse([*base, "--method", "nope"])
+    assert bad.value.code == 2

@@ -1,0 +1,523 @@
+"""Virtual objects reflecting each other: the paper's multi-pass rendering (§3.3, Listing 1).
+
+Listing 1 renders r passes; in each one every object gets a map built from the current screen
+S, and the captured screen becomes S for the next. r = 1 shows the plate on every object,
+r = 2 the objects in each other, r = 3 those reflections again, and so on. Here, improved:
+
+- Pass 1 is Generate (`generate.generate`): every reflective object's map from the plate, then
+  ONE render of all of them (so the number of renders is r, whatever the number of objects).
+  The composite (render over plate) is the next plate.
+- In pass k > 1 each object's map is built from the previous composite, but with the object's
+  own pixels put back to the plate first, so an object never reflects its own previous image
+  (the paper's two mirrors "will not reflect themselves in the mirror shown in their own
+  reflection"). The masks come from the object-index pass: each reflective object gets a
+  unique ``pass_index`` for the duration. Cycles' object index is not antialiased (it is the
+  first sample's object), so each mask is grown by a pixel to take in the object's edge.
+- Passes after the first re-render only the region covering the reflective objects (a render
+  border, not cropped) and paste it into the previous full render: between passes only the
+  maps change, and a map is seen only on its object. (What the objects' new maps would change
+  elsewhere -- their mirror images in other glossy virtual objects, the glow of a Replace-mode
+  emission on the ground -- stays as the first pass rendered it.)
+- Later passes build each map with Generate itself, given the masked composite as the plate
+  (``generate.generate(..., plate=...)``): the same bounds, map size and settings as pass 1, so
+  the engine's cached lookup table is found again, the map image is updated in place
+  (`maps.store_map`) and the material copies are rewired, not multiplied (`shading.attach`
+  first takes off what it attached before).
+
+Frames and sizes: plate pixels (CONVENTIONS.md: origin top-left, y down). The plate has its own
+size (H, W); the render has the scene's (h, w), after the resolution percentage. Maps are
+always built at the plate's size, as Generate builds them -- the render is scaled up (nearest)
+and put over the full plate -- so later passes keep the plate's detail; the composites this
+module returns are at the render's size, over the plate scaled down (nearest), as the batch
+entry composites. Everything is scene-linear Rec.709 float32.
+
+Rendering: the render is written as a multilayer EXR (Combined and the object index of the
+scene's active view layer) into a temporary folder and read with OpenImageIO (bundled with
+Blender). Everything changed for that -- output format and path, border, compositing, film,
+persistent data (the bpy 4.5 module's Cycles does not see map updates with it), the object
+index pass, the objects' pass indices, Update Every Frame -- is restored afterwards, also on
+errors.
+"""
+
+import contextlib
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from . import compositor, generate, maps
+
+R_MAX = 8  # the most passes "auto" renders unless told otherwise
+TOLERANCE = 1.0 / 255.0  # "auto" stops when a pass changes the objects' pixels less than this
+COMPOSITE_IMAGE = "VR Composite"
+MASK_GROW = 1  # px added around each object's index mask (the index is not antialiased)
+REGION_PAD = 2  # px around the objects that later passes replace (the pixel filter's reach)
+BORDER_PAD = 2  # px rendered around that region, so the border's rounding never leaves a gap
+INDEX_PASSES = ("IndexOB", "Object Index")  # the object index pass: 4.5, 5.x
+
+
+@dataclass
+class PassReport:
+    """One pass of `render_passes`.
+
+    index: 1 for the first pass. seconds: the whole pass. change: mean |composite - previous
+    composite| over the reflective objects' pixels and the three channels, scene-linear (pass
+    1: against the bare plate). border: the re-rendered region (x0, y0, x1, y1) in render pixels
+    (origin top-left, y down, x1/y1 exclusive), None for the full frame. maps_seconds: building
+    and storing the maps (pass 1: all of Generate). render_seconds: Blender's render call.
+    warnings: Generate's, on pass 1.
+    """
+
+    index: int
+    seconds: float
+    change: float
+    border: tuple | None
+    maps_seconds: float
+    render_seconds: float
+    warnings: tuple = ()
+
+    def line(self):
+        region = "full frame"
+        if self.border is not None:
+            x0, y0, x1, y1 = self.border
+            region = f"border {x1 - x0}x{y1 - y0}"
+        return (
+            f"pass {self.index}: {self.seconds:.2f} s (maps {self.maps_seconds:.2f} s, "
+            f"render {self.render_seconds:.2f} s, {region}), change {self.change:.5f}"
+        )
+
+
+def render_passes(
+    context,
+    objects,
+    plate,
+    passes=1,
+    tolerance=TOLERANCE,
+    r_max=R_MAX,
+    progress=None,
+    *,
+    _self_mask=True,
+):
+    """Render ``objects`` with r-level inter-reflections; returns ``(composite, rgba, reports)``.
+
+    plate: the scene's plate, (H, W, 3) float32 scene-linear, as `generate.plate_pixels` gives
+    it (pass 1 is Generate, which reads the scene's plate itself). passes: r, an int >= 1, or
+    "auto": passes until one changes the objects' pixels by less than ``tolerance`` (mean
+    absolute, scene-linear), at most ``r_max``. progress: called with the number of passes done.
+    composite: (h, w, 3) float32, the last render over the plate; rgba: (h, w, 4) float32
+    premultiplied, the last render (later passes pasted into the first); reports: one
+    `PassReport` per pass. ``_self_mask=False`` lets objects see their own previous image
+    (for tests). Raises ValueError (one line) when nothing can be rendered.
+    """
+    scene = context.scene
+    settings = scene.virtual_reflections
+    limit = _pass_limit(passes, r_max)
+    plate = np.asarray(plate, dtype=np.float32)
+    image = compositor.scene_plate(scene)
+    if image is None:
+        raise ValueError("no plate: pick a plate image or give the camera a background image")
+    if plate.ndim != 3 or plate.shape[2] != 3 or plate.shape[1::-1] != tuple(image.size):
+        raise ValueError(
+            f"the plate must be the scene's plate pixels ({image.size[0]}x{image.size[1]}x3), "
+            f"got shape {plate.shape}"
+        )
+    if limit > 1 and settings.combine == "WORLD":
+        raise ValueError(
+            "inter-reflections need a map per object: choose a combine mode other than World"
+        )
+    layer = _view_layer(context)
+    reports = []
+    with tempfile.TemporaryDirectory(prefix="vr-passes-") as folder:
+        path = os.path.join(folder, "pass.exr")
+        # Pass 1: Generate, then one full render.
+        started = time.perf_counter()
+        generated = generate.generate(context, objects)
+        maps_seconds = time.perf_counter() - started
+        by_name = {obj.name: obj for obj in objects}
+        done = [by_name[name] for name in generated.done]
+        if not done:
+            raise ValueError("no reflection generated: " + "; ".join(generated.warnings))
+        with _render_state(scene, layer, path, done) as ids:
+            rgba, index, render_seconds = _render(scene, layer, path)
+            h, w = rgba.shape[:2]
+            plate_small = _resample(plate, h, w)
+            composite = compositor.composite_over_plate(rgba, plate_small)
+            own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
+            coverage = np.logical_or.reduce(list(own.values()))
+            reports.append(
+                PassReport(
+                    1,
+                    time.perf_counter() - started,
+                    _change(composite, plate_small, coverage),
+                    None,
+                    maps_seconds,
+                    render_seconds,
+                    tuple(generated.warnings),
+                )
+            )
+            if progress:
+                progress(1)
+            if limit == 1:
+                return composite, rgba, reports
+
+            x0, y0, x1, y1 = border = _border(done, coverage, plate.shape, (h, w))
+            # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
+            # render pixels `sub` (nearest).
+            ys, xs = _upsample(plate.shape[0], h), _upsample(plate.shape[1], w)
+            (Y0, Y1), (X0, X1) = np.searchsorted(ys, (y0, y1)), np.searchsorted(xs, (x0, x1))
+            sub = np.ix_(ys[Y0:Y1], xs[X0:X1])
+            own_sub = {obj: mask[sub] for obj, mask in own.items()}
+            # The composite at the plate's size; outside the region it stays pass 1's.
+            source = compositor.composite_over_plate(rgba[np.ix_(ys, xs)], plate)
+            inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
+            _set_border(scene.render, border, (h, w))
+            for k in range(2, limit + 1):
+                started = time.perf_counter()
+                # The previous composite is the new plate ...
+                inside[...] = compositor.composite_over_plate(rgba[sub], plate_inside)
+                for obj in done:
+                    # ... except where the object itself is: there it sees the original plate.
+                    # Generate builds the map exactly as in pass 1 (same bounds, size and
+                    # settings: the engine's cached table) and stores it in place.
+                    mine = own_sub[obj] if _self_mask else np.zeros(inside.shape[:2], bool)
+                    kept = inside[mine]
+                    inside[mine] = plate_inside[mine]
+                    generate.generate(context, [obj], plate=source)
+                    inside[mine] = kept
+                maps_seconds = time.perf_counter() - started
+                new, _, render_seconds = _render(scene, layer, path)
+                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
+                previous, composite = composite, compositor.composite_over_plate(rgba, plate_small)
+                reports.append(
+                    PassReport(
+                        k,
+                        time.perf_counter() - started,
+                        _change(composite, previous, coverage),
+                        border,
+                        maps_seconds,
+                        render_seconds,
+                    )
+                )
+                if progress:
+                    progress(k)
+                if passes == "auto" and reports[-1].change < tolerance:
+                    break
+    return composite, rgba, reports
+
+
+def _pass_limit(passes, r_max):
+    if not isinstance(r_max, int) or r_max < 1:
+        raise ValueError(f"r_max must be a whole number of passes >= 1, not {r_max!r}")
+    if passes == "auto":
+        return r_max
+    if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
+        raise ValueError(f"passes must be a whole number >= 1 or 'auto', not {passes!r}")
+    return passes
+
+
+def _view_layer(context):
+    """The view layer rendered and read: the context's when it is the scene's, else the
+    scene's first."""
+    scene = context.scene
+    layer = getattr(context, "view_layer", None)
+    if layer is not None and scene.view_layers.get(layer.name) == layer:
+        return layer
+    return scene.view_layers[0]
+
+
+# --- the render and its files -------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def _render_state(scene, layer, path, objects):
+    """Set the scene up for the passes and restore it afterwards; yields {object: index}.
+
+    Each object gets a pass index no other object of the scene uses.
+    """
+    render, fmt = scene.render, scene.render.image_settings
+    changes = [
+        (render, "filepath", path),
+        (render, "use_border", False),
+        (render, "border_min_x", 0.0),
+        (render, "border_max_x", 1.0),
+        (render, "border_min_y", 0.0),
+        (render, "border_max_y", 1.0),
+        (render, "use_crop_to_border", False),
+        (render, "use_compositing", False),  # composited here, over the plate
+        (render, "use_sequencer", False),
+        (render, "film_transparent", True),
+        (render, "use_persistent_data", False),  # 4.5 would keep the previous maps
+        (layer, "use_pass_object_index", True),
+    ]
+    settings = scene.virtual_reflections
+    if "sequence" in settings.bl_rna.properties:
+        # Update Every Frame rebuilds the maps from the plate when a render changes the frame.
+        changes.append((settings, "sequence", False))
+    if hasattr(fmt, "media_type"):  # 5.x: multilayer is a media type; set before the format
+        changes.append((fmt, "media_type", "MULTI_LAYER_IMAGE"))
+    changes += [
+        (fmt, "file_format", "OPEN_EXR_MULTILAYER"),
+        (fmt, "color_mode", "RGBA"),
+        (fmt, "color_depth", "32"),
+        (fmt, "exr_codec", "NONE"),  # a temporary file: fastest to write and read
+    ]
+    ours = set(objects)
+    taken = {o.pass_index for o in scene.objects if o not in ours}
+    free = (i for i in range(1, 32768) if i not in taken)
+    ids = {obj: next(free) for obj in objects}
+    changes += [(obj, "pass_index", i) for obj, i in ids.items()]
+    saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in changes]
+    try:
+        for owner, attr, value in changes:
+            setattr(owner, attr, value)
+        yield ids
+    finally:
+        for owner, attr, value in saved:  # in the order set: the media type before the format
+            setattr(owner, attr, value)
+
+
+def _set_border(render, box, size):
+    """Render only ``box`` (render pixels, y down) and a margin; Blender's border is 0..1,
+    y up."""
+    (h, w), (x0, y0, x1, y1) = size, box
+    render.border_min_x = max(x0 - BORDER_PAD, 0) / w
+    render.border_max_x = min(x1 + BORDER_PAD, w) / w
+    render.border_min_y = 1.0 - min(y1 + BORDER_PAD, h) / h
+    render.border_max_y = 1.0 - max(y0 - BORDER_PAD, 0) / h
+    render.use_border = True
+
+
+def _render(scene, layer, path):
+    """Render the layer into the multilayer EXR at ``path``; returns ((h, w, 4) float32 RGBA
+    premultiplied, (h, w) int32 object index, seconds of the render call)."""
+    started = time.perf_counter()
+    bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
+    seconds = time.perf_counter() - started
+    channels = _read_channels(path)
+    names = [f"{layer.name}.Combined.{c}" for c in "RGBA"]
+    missing = [n for n in names if n not in channels]
+    if missing:
+        raise ValueError(f"the render has no {missing[0]} channel")
+    found = [f"{layer.name}.{p}.X" for p in INDEX_PASSES if f"{layer.name}.{p}.X" in channels]
+    index = channels[found[0]] if found else None
+    if index is None:
+        raise ValueError(
+            f"{scene.render.engine} wrote no object index pass: inter-reflections need Cycles"
+        )
+    rgba = np.stack([channels[n] for n in names], axis=-1)
+    return rgba, np.rint(index).astype(np.int32), seconds
+
+
+def _read_channels(path):
+    """Every channel of a (multi-part) EXR by name: {name: (h, w) float32}, top row first."""
+    import OpenImageIO as oiio
+
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        raise ValueError(f"cannot read the render {path}: {oiio.geterror()}")
+    channels = {}
+    try:
+        part = 0
+        while image.seek_subimage(part, 0):  # 5.x writes one part per pass
+            spec = image.spec()
+            pixels = image.read_image(part, 0, 0, spec.nchannels, "float")
+            pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
+            for c, name in enumerate(spec.channelnames):
+                channels[name] = pixels[..., c]
+            part += 1
+    finally:
+        image.close()
+    return channels
+
+
+def write_render(path, rgba):
+    """Write an (h, w, 4) float32 premultiplied render as a scene-linear float RGBA EXR."""
+    import OpenImageIO as oiio
+
+    h, w = rgba.shape[:2]
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        raise ValueError(f"cannot write {path}: {oiio.geterror()}")
+    spec = oiio.ImageSpec(w, h, 4, "float")
+    spec.attribute("compression", "zip")
+    ok = out.open(path, spec) and out.write_image(np.ascontiguousarray(rgba, np.float32))
+    ok = out.close() and ok
+    if not ok:
+        raise ValueError(f"cannot write {path}: {out.geterror()}")
+
+
+# --- pixels ------------------------------------------------------------------------------------
+
+
+def _resample(pixels, h, w):
+    """(H, W, C) -> (h, w, C), nearest pixel centres (as the batch entry scales the plate)."""
+    if pixels.shape[:2] == (h, w):
+        return pixels
+    ys = ((np.arange(h) + 0.5) * pixels.shape[0] / h).astype(int)
+    xs = ((np.arange(w) + 0.5) * pixels.shape[1] / w).astype(int)
+    return pixels[np.ix_(ys, xs)]
+
+
+def _upsample(size, render_size):
+    """For each of ``size`` plate rows (or columns), the render row (column) of ``render_size``
+    whose area holds its centre."""
+    return np.minimum(((np.arange(size) + 0.5) * render_size / size).astype(int), render_size - 1)
+
+
+def _grow(mask, pixels):
+    """(h, w) bool mask grown by ``pixels`` in every direction (square dilation)."""
+    out = mask.copy()
+    for _ in range(pixels):
+        rows = out.copy()
+        rows[1:] |= out[:-1]
+        rows[:-1] |= out[1:]
+        out = rows.copy()
+        out[:, 1:] |= rows[:, :-1]
+        out[:, :-1] |= rows[:, 1:]
+    return out
+
+
+def _change(a, b, where):
+    """Mean |a - b| over the pixels ``where`` and the channels; 0 when ``where`` is empty."""
+    if not where.any():
+        return 0.0
+    return float(np.abs(a[where] - b[where]).mean())
+
+
+def _border(objects, coverage, plate_shape, render_size):
+    """The render pixels (x0, y0, x1, y1) that later passes re-render: the objects' screen
+    boxes (as Generate stored them, in plate pixels) and their masks (``coverage``, (h, w)
+    bool), grown by REGION_PAD (pixel filter, mask growth) and cut to the frame."""
+    (h, w), (H, W) = render_size, plate_shape[:2]
+    boxes = [tuple(obj.virtual_reflections.bounds) for obj in objects]
+    x0, x1 = min(b[0] for b in boxes) * w / W, max(b[2] for b in boxes) * w / W
+    y0, y1 = min(b[1] for b in boxes) * h / H, max(b[3] for b in boxes) * h / H
+    rows, cols = np.nonzero(coverage.any(1))[0], np.nonzero(coverage.any(0))[0]
+    if len(rows):
+        x0, x1 = min(x0, cols[0]), max(x1, cols[-1] + 1)
+        y0, y1 = min(y0, rows[0]), max(y1, rows[-1] + 1)
+    return (
+        min(max(math.floor(x0) - REGION_PAD, 0), w),
+        min(max(math.floor(y0) - REGION_PAD, 0), h),
+        min(max(math.ceil(x1) + REGION_PAD, 0), w),
+        min(max(math.ceil(y1) + REGION_PAD, 0), h),
+    )
+
+
+# --- the batch entry ---------------------------------------------------------------------------
+
+
+def render_shot_passes(context, objects, passes, render_path, log=print):
+    """The batch entry's ``--passes`` (operators/batch.py): `render_passes` on the scene's
+    plate, the last render written to ``render_path`` (RGBA float EXR, scene-linear), one log
+    line per pass. Returns the (h, w, 3) float32 composite."""
+    scene = context.scene
+    if not objects:
+        raise ValueError("no object to reflect the plate (use --objects or mark objects)")
+    image = compositor.scene_plate(scene)
+    if image is None:
+        raise ValueError("no plate: pick a plate image or give the camera a background image")
+    plate, _ = generate.plate_pixels(scene, image)
+    composite, rgba, reports = render_passes(context, objects, plate, passes)
+    for warning in reports[0].warnings:
+        log(f"warning: {warning}")
+    for report in reports:
+        log(report.line())
+    log(f"{len(reports)} pass(es) in {sum(r.seconds for r in reports):.2f} s")
+    write_render(render_path, rgba)
+    return composite
+
+
+# --- the operator ------------------------------------------------------------------------------
+
+
+def show_composite(context, composite):
+    """Put an (h, w, 3) composite into the image "VR Composite" (made by the add-on, updated in
+    place, removed with the maps) and show it in the open Image Editors."""
+    image = maps.store_map(COMPOSITE_IMAGE, composite)
+    screen = getattr(context, "screen", None)
+    for area in screen.areas if screen is not None else ():
+        if area.type == "IMAGE_EDITOR":
+            area.spaces.active.image = image
+    return image
+
+
+class VR_OT_render_passes(bpy.types.Operator):
+    """Render the reflective objects reflecting each other (paper §3.3): each pass builds the
+    maps from the previous composite. The result goes to the image "VR Composite\""""
+
+    bl_idname = "vr.render_passes"
+    bl_label = "Render Inter-Reflections"
+    bl_options = {"REGISTER", "UNDO"}
+
+    passes: bpy.props.IntProperty(
+        name="Passes",
+        description="Recursion depth r: 1 reflects the plate only, 2 the objects in each other, "
+        "3 those reflections again",
+        default=2,
+        min=1,
+        max=32,
+        soft_max=8,
+    )
+    auto: bpy.props.BoolProperty(
+        name="Until Converged",
+        description=f"Render passes until one changes the image less than the tolerance "
+        f"(at most {R_MAX})",
+        default=False,
+    )
+    tolerance: bpy.props.FloatProperty(
+        name="Tolerance",
+        description="Mean change of the objects' pixels (scene-linear) under which Until "
+        "Converged stops",
+        default=TOLERANCE,
+        min=0.0,
+        soft_max=0.05,
+        precision=4,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        reason = generate.why_not_generate(context)
+        if reason:
+            cls.poll_message_set(reason)
+        return reason is None
+
+    def execute(self, context):
+        scene = context.scene
+        passes = "auto" if self.auto else self.passes
+        wm = context.window_manager
+        wm.progress_begin(0, R_MAX if self.auto else self.passes)
+        try:
+            plate, _ = generate.plate_pixels(scene, compositor.scene_plate(scene))
+            composite, _, reports = render_passes(
+                context,
+                generate.candidates(context),
+                plate,
+                passes,
+                tolerance=self.tolerance,
+                progress=wm.progress_update,
+            )
+        except (ValueError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc).strip().splitlines()[0])
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        show_composite(context, composite)
+        for warning in reports[0].warnings:
+            self.report({"WARNING"}, warning)
+        total = sum(r.seconds for r in reports)
+        per_pass = "; ".join(
+            f"{r.index}: {r.seconds:.1f} s, change {r.change:.4f}" for r in reports
+        )
+        summary = f"{len(reports)} pass(es) in {total:.1f} s ({per_pass}) -> '{COMPOSITE_IMAGE}'"
+        scene.virtual_reflections.last_report = summary
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+classes = (VR_OT_render_passes,)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,278 @@
+"""Inter-reflections (paper §3.3): passes, self-masking, auto-r, restored settings, the
+operator and the batch entry's --passes. Tiny Cycles renders (96 x 54, 4 samples)."""
+
+import math
+import pathlib
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+W, H = 96, 54  # render; the plate is twice that, so the passes scale between the two
+
+
+@pytest.fixture
+def interreflect(addon):
+    from vr_addon_under_test.operators import interreflect
+
+    return interreflect
+
+
+def make_scene(combine="REPLACE"):
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, -9.0, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looks along +Y, Z up
+    render = scene.render
+    render.resolution_x, render.resolution_y, render.resolution_percentage = W, H, 100
+    render.engine = "CYCLES"
+    scene.cycles.samples = 4
+    scene.cycles.use_denoising = False
+    scene.cycles.device = "CPU"
+    scene.view_settings.view_transform = "Standard"
+    settings = scene.virtual_reflections
+    settings.resolution = "256"
+    settings.combine = combine
+    return scene
+
+
+def plate_image(pixels):
+    """A float plate image from (h, w, 3) scene-linear pixels, top row first."""
+    h, w = pixels.shape[:2]
+    image = bpy.data.images.new("Plate", w, h, alpha=False, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = pixels
+    image.pixels.foreach_set(rgba[::-1].ravel())
+    image.pack()
+    bpy.context.scene.virtual_reflections.plate_image = image
+    return image
+
+
+def colourful_plate():
+    y, x = np.mgrid[0 : 2 * H, 0 : 2 * W] / np.array([2 * H, 2 * W])[:, None, None]
+    stripes = (np.floor(x * 12) % 2) * 0.3
+    return np.stack([0.9 * (1 - x) + stripes, 0.2 + 0.6 * y, 0.9 * x], -1).astype(np.float32)
+
+
+def add_sphere(name, location, colour=None):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, segments=24, ring_count=12, location=location)
+    obj = bpy.context.active_object
+    obj.name = name
+    bpy.ops.object.shade_smooth()
+    if colour is not None:
+        mat = bpy.data.materials.new(f"{name} paint")
+        if mat.node_tree is None:
+            mat.use_nodes = True
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+        obj.data.materials.append(mat)
+    return obj
+
+
+def two_objects():
+    """A sphere and an upright torus close together, both in view."""
+    sphere = add_sphere("Sphere", (-1.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_torus_add(
+        major_radius=0.8, minor_radius=0.25, major_segments=32, minor_segments=12,
+        location=(1.1, 0.0, 0.0), rotation=(math.pi / 2, 0.0, math.radians(35)),
+    )  # fmt: skip
+    torus = bpy.context.active_object
+    torus.name = "Torus"
+    bpy.ops.object.shade_smooth()
+    return [sphere, torus]
+
+
+def run(interreflect, objects, passes, **kwargs):
+    scene = bpy.context.scene
+    plate = interreflect.generate.plate_pixels(scene, scene.virtual_reflections.plate_image)[0]
+    return interreflect.render_passes(bpy.context, objects, plate, passes, **kwargs)
+
+
+def test_each_pass_changes_the_image_less(interreflect):
+    make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    composite, rgba, reports = run(interreflect, objects, 4)
+    assert composite.shape == (H, W, 3) and rgba.shape == (H, W, 4)
+    assert np.isfinite(composite).all() and composite.dtype == np.float32
+    changes = [r.change for r in reports]
+    # The objects see each other from pass 2 on, and less of each other each pass.
+    assert changes[1] > 1e-3, changes
+    assert changes[1] > changes[2] > changes[3] or changes[3] == 0.0, changes
+    assert changes[2] < 0.5 * changes[1], changes
+    # The report's fields.
+    assert [r.index for r in reports] == [1, 2, 3, 4]
+    assert reports[0].border is None and reports[0].warnings == ()
+    for r in reports:
+        assert 0 < r.render_seconds and 0 < r.maps_seconds
+        assert r.render_seconds + r.maps_seconds <= r.seconds
+        assert "pass" in r.line()
+    x0, y0, x1, y1 = reports[1].border
+    assert 0 <= x0 < x1 <= W and 0 <= y0 < y1 <= H
+    assert all(r.border == reports[1].border for r in reports[1:])
+    # Outside the re-rendered region the last composite is the first pass's.
+    first, _, _ = run(interreflect, objects, 1)
+    outside = np.ones((H, W), bool)
+    outside[y0:y1, x0:x1] = False
+    assert np.array_equal(composite[outside], first[outside])
+    assert not np.allclose(composite, first, atol=1e-3)
+
+
+def red_ball_on_grey():
+    """One object that renders red (Modulate: its red paint times the map) over a grey plate."""
+    make_scene("MODULATE")
+    plate_image(np.full((2 * H, 2 * W, 3), 0.5, np.float32))
+    return add_sphere("Red Ball", (0.0, 0.0, 0.0), colour=(0.9, 0.02, 0.02))
+
+
+def redness(name):
+    image = bpy.data.images[name]
+    px = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(-1, 4)
+    return float((px[:, 0] - px[:, 1]).max())
+
+
+def test_an_object_never_reflects_itself(interreflect):
+    ball = red_ball_on_grey()
+    composite, rgba, reports = run(interreflect, [ball], 2)
+    assert composite[rgba[..., 3] > 0.99][:, 0].mean() > 0.3  # it does look red on screen
+    assert redness("VR Map Red Ball") < 0.01  # its map: only the grey plate
+    assert reports[1].change == 0.0  # so pass 2 is pass 1 again, exactly
+    # Without the mask its own red image is in its map, and the image changes.
+    _, _, unmasked = run(interreflect, [ball], 2, _self_mask=False)
+    assert redness("VR Map Red Ball") > 0.2
+    assert unmasked[1].change > 1e-3
+
+
+def test_auto_stops_when_the_image_settles(interreflect):
+    make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    tolerance = 1 / 255
+    _, _, reports = run(interreflect, objects, "auto", tolerance=tolerance, r_max=5)
+    assert 2 <= len(reports) <= 5
+    assert reports[-1].change < tolerance or len(reports) == 5
+    assert all(r.change >= tolerance for r in reports[1:-1])  # it did not stop early
+    # Tolerance 0 is never reached: r_max passes.
+    _, _, reports = run(interreflect, objects, "auto", tolerance=0.0, r_max=3)
+    assert len(reports) == 3
+
+
+def test_auto_stops_at_once_for_one_object(interreflect):
+    # One object alone has nothing new to see after pass 1.
+    ball = red_ball_on_grey()
+    _, _, reports = run(interreflect, [ball], "auto")
+    assert len(reports) == 2 and reports[1].change == 0.0
+
+
+def test_settings_are_restored(interreflect):
+    scene = make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    bystander = add_sphere("Bystander", (0.0, 3.0, 2.5))  # not reflective, shares an index
+    objects[0].pass_index, objects[1].pass_index, bystander.pass_index = 7, 0, 1
+    render, fmt, layer = scene.render, scene.render.image_settings, scene.view_layers[0]
+    render.use_border, render.use_crop_to_border = True, True
+    render.border_min_x, render.border_max_x = 0.1, 0.6
+    render.border_min_y, render.border_max_y = 0.2, 0.7
+    render.filepath = "//frames/shot_"
+    render.use_compositing, render.film_transparent, render.use_persistent_data = True, False, True
+    fmt.file_format, fmt.color_mode = "PNG", "RGB"
+    layer.use_pass_object_index = False
+    settings = scene.virtual_reflections
+    if hasattr(settings, "sequence"):  # Update Every Frame would redo the maps from the plate
+        settings.sequence = True
+
+    def state():
+        return (
+            [o.pass_index for o in (*objects, bystander)],
+            [getattr(render, a) for a in ("use_border", "use_crop_to_border", "filepath")],
+            [round(getattr(render, f"border_{a}_{b}"), 6) for a in "min max".split() for b in "xy"],
+            [render.use_compositing, render.film_transparent, render.use_persistent_data],
+            [fmt.file_format, fmt.color_mode, fmt.color_depth, layer.use_pass_object_index],
+            getattr(settings, "sequence", None),
+        )  # fmt: skip
+
+    before = state()
+    _, _, reports = run(interreflect, objects, 2)
+    assert reports[1].change > 1e-3
+    assert state() == before
+    # The indices used are unique in the scene, and restored after an error too.
+    with pytest.raises(RuntimeError, match="boom"):
+        with interreflect._render_state(scene, layer, "/tmp/x.exr", objects) as ids:
+            assert sorted(ids.values()) == [2, 3]
+            assert render.use_border is False and fmt.file_format == "OPEN_EXR_MULTILAYER"
+            raise RuntimeError("boom")
+    assert state() == before
+
+
+def test_bad_input(interreflect):
+    scene = make_scene()
+    plate_image(colourful_plate())
+    ball = add_sphere("Ball", (0.0, 0.0, 0.0))
+    for passes in (0, -1, 2.5, "three", True):
+        with pytest.raises(ValueError, match="passes"):
+            run(interreflect, [ball], passes)
+    with pytest.raises(ValueError, match="plate"):
+        interreflect.render_passes(bpy.context, [ball], np.zeros((4, 4, 3), np.float32), 2)
+    scene.virtual_reflections.combine = "WORLD"
+    with pytest.raises(ValueError, match="World"):
+        run(interreflect, [ball], 2)
+    scene.virtual_reflections.combine = "REPLACE"
+    ball.location = (0, 0, 50)  # out of view: nothing to render
+    with pytest.raises(ValueError, match="outside the camera view"):
+        run(interreflect, [ball], 2)
+
+
+def test_operator_shows_the_composite(interreflect):
+    make_scene()
+    plate_image(colourful_plate())
+    for obj in two_objects():
+        obj.select_set(True)
+    assert hasattr(bpy.types, "VR_OT_render_passes")  # registered with the add-on
+    assert bpy.ops.vr.render_passes(passes=2) == {"FINISHED"}
+    image = bpy.data.images[interreflect.COMPOSITE_IMAGE]
+    assert tuple(image.size) == (W, H)
+    report = bpy.context.scene.virtual_reflections.last_report
+    assert report.startswith("2 pass(es)") and "change" in report
+    counts = [len(c) for c in (bpy.data.images, bpy.data.materials, bpy.data.node_groups)]
+    assert bpy.ops.vr.render_passes(auto=True) == {"FINISHED"}
+    # Maps, the composite, material copies and groups are updated, not made again.
+    assert [len(c) for c in (bpy.data.images, bpy.data.materials, bpy.data.node_groups)] == (counts)
+
+
+def test_render_shot_passes(interreflect, tmp_path):
+    make_scene()
+    two_objects()
+    path = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    plate = ROOT / "sample_scenes/plates/courtyard.jpg"
+    args = [str(path), "--plate", str(plate), "--out", str(tmp_path / "out"), "--scale", "8"]
+    args += ["--resolution", "256", "--samples", "4"]
+    r = subprocess.run(
+        [sys.executable, "-m", "render_shot", *args, "--passes", "3"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "pass 3:" in r.stdout and "3 pass(es)" in r.stdout
+    for name in ("shot_render.exr", "shot_composite.exr", "shot_composite.png"):
+        assert (tmp_path / "out" / name).exists()
+    render = bpy.data.images.load(str(tmp_path / "out" / "shot_render.exr"))
+    assert tuple(render.size) == (102, 57) and render.channels == 4
+    bad = subprocess.run(
+        [sys.executable, "-m", "render_shot", *args, "--passes", "0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert bad.returncode == 2 and "--passes" in bad.stderr
