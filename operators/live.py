@@ -51,6 +51,7 @@ class _State:
     scene_key: dict = field(default_factory=dict)  # scene name -> settings that shape a map
     last_change: float = 0.0
     last_pass: float = 0.0
+    next_tick: float = 0.0  # when the registered timer runs next (time.monotonic)
     reduced: tuple = ()  # (plate array id, level, reduced plate)
     status: dict = field(default_factory=dict)  # scene name -> one line for the panel
     passes: int = 0
@@ -152,12 +153,18 @@ def queue(scene, names):
         _state.scene = scene.name
     _state.pending |= set(names)
     _state.last_change = time.monotonic()
-    # Come back soon for the preview, however long the timer was going to sleep. Timers are
-    # persistent and always unregistered by us: one a file load removed makes the bpy 4.5
-    # module hang at exit.
+    # Come back soon for the preview, however long the timer was going to sleep. A timer
+    # already due that soon is left alone: registering it again would put it behind the
+    # other timers, and updates that come from a timer (scripts, drivers) would starve it.
+    # Timers are persistent and always unregistered by us: one a file load removed makes the
+    # bpy 4.5 module hang at exit.
+    wait = _until_next_pass()
     if bpy.app.timers.is_registered(tick):
+        if _state.next_tick <= time.monotonic() + wait:
+            return
         bpy.app.timers.unregister(tick)
-    bpy.app.timers.register(tick, first_interval=_until_next_pass(), persistent=True)
+    _state.next_tick = time.monotonic() + wait
+    bpy.app.timers.register(tick, first_interval=wait, persistent=True)
 
 
 def _until_next_pass():
@@ -180,6 +187,12 @@ def render_running() -> bool:
 def tick():
     """The timer: a preview pass for what changed, the full maps once things rest. Returns
     seconds until it should run again, or None when there is nothing left to do."""
+    wait = _tick()
+    _state.next_tick = time.monotonic() + (wait if wait is not None else 0.0)
+    return wait
+
+
+def _tick():
     scene = bpy.data.scenes.get(_state.scene)
     if scene is None or not scene.virtual_reflections.live_update:
         _state.pending.clear()

@@ -223,10 +223,25 @@ def drag():
     return 2.0  # more than live.REST: the small map, then the full one
 
 
+SETTLE = 30.0  # seconds a loaded machine may take (software GL draws slowly between timers)
+
+
+def _settled(live, key):
+    """True once live update has nothing pending or resting, or after SETTLE seconds; else
+    put the calling step back to run again soon."""
+    started = STATE.setdefault(key, time.monotonic())
+    if (live.pending() or live.resting()) and time.monotonic() - started < SETTLE:
+        STEPS.insert(0, globals()[key])
+        return False
+    return True
+
+
 @step
 def rested():
     maps = sys.modules[ADDON.__name__ + ".operators.maps"]
     live = sys.modules[ADDON.__name__ + ".operators.live"]
+    if not _settled(live, "rested"):
+        return 0.5
     image = bpy.data.images[maps.map_name(STATE["sphere"].name)]
     RESULT["live"] = {
         "passes": maps.version(image) - STATE["version"],
@@ -241,6 +256,8 @@ def rested():
 @step
 def reshaped():
     maps = sys.modules[ADDON.__name__ + ".operators.maps"]
+    if not _settled(sys.modules[ADDON.__name__ + ".operators.live"], "reshaped"):
+        return 0.5
     image = bpy.data.images[maps.map_name(STATE["sphere"].name)]
     RESULT["live"]["after_enlarge"] = maps.version(image) - STATE["version"]
 

@@ -51,3 +51,26 @@ def blender():
         )
 
     return run
+
+
+@pytest.fixture(scope="session")
+def blender_gui(blender):
+    """Run a script in Blender with its window, on a virtual X display (xvfb-run)."""
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("xvfb-run is not installed (apt-get install xvfb)")
+
+    def run(script, *args, timeout=300):
+        r = blender(
+            "--factory-startup",
+            "--python",
+            script,
+            "--",
+            *args,
+            timeout=timeout,
+            wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
+        )
+        if "libGL.so" in r.stdout + r.stderr:
+            pytest.skip("the Blender binary has no OpenGL libraries (libgl1-mesa-dri)")
+        return r
+
+    return run

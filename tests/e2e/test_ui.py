@@ -2,7 +2,6 @@
 Ctrl+Z. Needs a real Blender binary and xvfb-run; skipped with the reason otherwise."""
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
@@ -47,28 +46,6 @@ def run():
 
 bpy.app.timers.register(run, first_interval=0.5)
 """
-
-
-@pytest.fixture(scope="module")
-def blender_gui(blender):
-    if shutil.which("xvfb-run") is None:
-        pytest.skip("xvfb-run is not installed (apt-get install xvfb)")
-
-    def run(script, *args, timeout=300):
-        r = blender(
-            "--factory-startup",
-            "--python",
-            script,
-            "--",
-            *args,
-            timeout=timeout,
-            wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
-        )
-        if "libGL.so" in r.stdout + r.stderr:
-            pytest.skip("the Blender binary has no OpenGL libraries (libgl1-mesa-dri)")
-        return r
-
-    return run
 
 
 def test_undo_after_generate(blender_gui, tmp_path):
