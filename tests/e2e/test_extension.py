@@ -52,6 +52,18 @@ scene.render.engine = "CYCLES"
 scene.cycles.samples = 2
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 print("ADDONS=" + json.dumps(sorted(a.module for a in bpy.context.preferences.addons)))
+# The installed extension's preferences: what new files start with, where saved maps go.
+import importlib
+addons = bpy.context.preferences.addons
+name = next(a.module for a in addons if a.module.endswith(".virtual_reflections"))
+prefs = addons[name].preferences
+prefs.combine, prefs.map_folder = "MODULATE", "USER"
+module = importlib.import_module(name + ".preferences")
+bpy.ops.wm.read_homefile(use_empty=True)
+print("PREFS=" + json.dumps({
+    "combine": bpy.context.scene.virtual_reflections.combine,
+    "folder": module.maps_folder(create=False),
+}))
 """
 
 
@@ -70,6 +82,10 @@ def test_installed_extension_renders_headless(blender, package, tmp_path):
     line = next(x for x in r.stdout.splitlines() if x.startswith("ADDONS="))
     addons = json.loads(line[len("ADDONS=") :])
     assert any(a.endswith(".virtual_reflections") for a in addons), addons
+    line = next(x for x in r.stdout.splitlines() if x.startswith("PREFS="))
+    prefs = json.loads(line[len("PREFS=") :])
+    assert prefs["combine"] == "MODULATE"  # a new file takes the preferred combine mode
+    assert str(tmp_path / "user") in prefs["folder"] and prefs["folder"].endswith("untitled")
     plate = ROOT / "sample_scenes/plates/courtyard.jpg"
     out = tmp_path / "out"
     r = blender(
