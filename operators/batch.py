@@ -23,12 +23,7 @@ import time
 import bpy
 import numpy as np
 
-from . import compositor, generate, sequence
-
-try:  # inter-reflection passes (paper §3.3), when that module is there
-    from . import interreflect
-except ImportError:  # pragma: no cover - depends on the checkout
-    interreflect = None
+from . import compositor, generate, interreflect, sequence
 
 ENGINES = {"CYCLES": ("CYCLES",), "EEVEE": ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")}
 
@@ -108,10 +103,6 @@ def _save(scene, pixels_rgb, path, fmt):
         bpy.data.images.remove(image)
 
 
-def _passes_available():
-    return interreflect is not None and hasattr(interreflect, "render_passes")
-
-
 def _configure(scene, args):
     """The render and reflection settings from the command line (both paths)."""
     settings = scene.virtual_reflections
@@ -170,7 +161,7 @@ def render_shot(args, started):
     # --- inter-reflections (paper §3.3, operators/interreflect.py) -------------------------------
     # --passes N|auto: generate, render and composite in passes instead of the one pass below.
     passes = getattr(args, "passes", 1)
-    if not args.no_reflections and passes != 1 and _passes_available():
+    if not args.no_reflections and passes != 1:
         render_path = os.path.abspath(os.path.join(args.out, f"{name}_render.exr"))
         comp = interreflect.render_shot_passes(
             _Context(scene),
@@ -181,9 +172,6 @@ def render_shot(args, started):
         )
         _save_composite(scene, comp, args.out, name, stamp, time.perf_counter())
         return 0
-    if not args.no_reflections and passes != 1:
-        print(f"[{stamp()}] warning: {_NO_PASSES.format(passes=passes)}")
-    # --- end inter-reflections -------------------------------------------------------------------
 
     if not args.no_reflections:
         objects = _objects(scene, args.objects)
@@ -209,12 +197,6 @@ def render_shot(args, started):
     comp = compositor.composite_over_plate(rgba, _fit(plate, rgba.shape))
     _save_composite(scene, comp, args.out, name, stamp, t)
     return 0
-
-
-_NO_PASSES = (
-    "--passes {passes}: inter-reflection passes need operators/interreflect.py, which this "
-    "extension does not have; rendered 1 pass"
-)
 
 
 def _render_settings(scene):
@@ -441,7 +423,7 @@ def render_frames(args, started, source):
     )
     outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
     _remove_stale(out, [*outputs.values(), report_path])
-    use_passes = not args.no_reflections and passes != 1 and _passes_available()
+    use_passes = not args.no_reflections and passes != 1
     header = {
         "version": 1,
         "shot": bpy.data.filepath,
@@ -479,9 +461,7 @@ def render_frames(args, started, source):
         objects = _objects(scene, args.objects)
         if not objects:
             raise ValueError("no object to reflect the plate (use --objects or mark objects)")
-        if passes != 1 and not use_passes:
-            warnings.append(_NO_PASSES.format(passes=passes))
-        elif use_passes:
+        if use_passes:
             warnings.append("--passes: pass 1 is Generate, so bounds are not smoothed over frames")
 
     entries = {}
