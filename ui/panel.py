@@ -61,7 +61,7 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         col.operator("vr.generate", icon="MATSPHERE")
         row = col.row(align=True)
         row.scale_y = 1 / 1.4
-        row.operator("vr.remove", icon="X")
+        row.operator("vr.remove", icon="X", text="Remove")
         row.operator("vr.render_passes", icon="RENDER_STILL", text="Inter-Reflections")
 
         row = layout.row()
