@@ -13,6 +13,7 @@ import bpy
 
 from ..virtual_reflections import lookup_table
 from ..virtual_reflections.envmap import apply_table
+from ..virtual_reflections.mapsize import auto_map_width
 from . import bounds, compositor, maps, shading
 
 REFLECTABLE = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}
@@ -116,20 +117,14 @@ def _save_dir(settings):
 
 # --- sensible defaults: map size and advice ------------------------------------------------
 
-WIDTHS = (256, 512, 1024, 2048, 4096)  # the resolution enum's sizes
-AUTO_PER_PIXEL = 1.6  # map pixels per screen pixel of the object (auto_width)
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
 
 
 def auto_width(extent) -> int:
-    """Lat-long width for an object ``extent`` render pixels across on screen.
-
-    A mirror sphere D pixels across turns directions twice as fast as its normals, so near its
-    centre it shows D/4 screen pixels per radian; a lat-long map W wide has W/2π texels per
-    radian: W ≈ 1.6 D keeps a texel per pixel. Rounded up to the next size offered.
-    """
-    need = AUTO_PER_PIXEL * max(float(extent), 0.0)
-    return next((w for w in WIDTHS if w >= need), WIDTHS[-1])
+    """Lat-long width for an object ``extent`` render pixels across on screen: the engine's
+    rule (W = π × extent, a power of two from 256 to 4096; virtual_reflections/mapsize.py),
+    the one the accuracy study measured."""
+    return auto_map_width(extent)
 
 
 def map_width(resolution: str, extent=None) -> int:

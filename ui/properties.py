@@ -37,8 +37,8 @@ RESOLUTION_ITEMS = (
     (
         "AUTO",
         "Auto",
-        "From the object's size on screen: about 1.6 map pixels per pixel it covers, rounded up "
-        "to the next size below (256 to 4096)",
+        "From the object's size on screen: about 3 map pixels (pi) per pixel it spans, rounded "
+        "up to the next size below (256 to 4096)",
     ),
 ) + tuple(
     (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")

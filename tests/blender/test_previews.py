@@ -147,25 +147,25 @@ def test_preset_changes_the_look_of_objects_that_reflect(addon):
 
 def test_auto_width_from_the_size_on_screen(addon):
     generate = addon_part("operators.generate")
-    assert generate.auto_width(10) == 256
-    assert generate.auto_width(400) == 1024  # 1.6 x 400 = 640 -> 1024
-    assert generate.auto_width(700) == 2048
+    assert generate.auto_width(10) == 256  # pi x 10 -> 32, raised to the floor
+    assert generate.auto_width(100) == 512  # pi x 100 = 314 -> 512
+    assert generate.auto_width(400) == 2048  # pi x 400 = 1257 -> 2048
     assert generate.auto_width(1e5) == 4096
     assert generate.map_width("512", 700) == 512
     assert generate.map_width("AUTO") == 1024
     scene = bpy.context.scene
     scene.virtual_reflections.resolution = "AUTO"
-    assert scene.virtual_reflections.map_width(200) == 512
+    assert scene.virtual_reflections.map_width(200) == 1024
 
 
 def test_auto_resolution_generates_a_map_sized_for_the_object(addon):
     scene, ball = make_shot(resolution="AUTO", generate=False)
     # The ball spans 14.3 degrees of the camera's 39.6: 36 % of the render's width.
-    scene.render.resolution_x, scene.render.resolution_y = 192, 128  # ~69 px: 1.6 x 69 -> 256
+    scene.render.resolution_x, scene.render.resolution_y = 192, 128  # ~69 px: pi x 69 -> 256
     report = addon_part("operators.generate").generate(bpy.context, [ball])
     assert report.done == ["Ball"]
     assert tuple(bpy.data.images["VR Map Ball"].size) == (256, 128)
-    scene.render.resolution_x, scene.render.resolution_y = 1920, 1280  # ~690 px -> 2048
+    scene.render.resolution_x, scene.render.resolution_y = 960, 640  # ~345 px: 1084 -> 2048
     addon_part("operators.generate").generate(bpy.context, [ball])
     assert tuple(bpy.data.images["VR Map Ball"].size) == (2048, 1024)
 
