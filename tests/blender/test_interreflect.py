@@ -38,6 +38,9 @@ def make_scene(combine="REPLACE"):
     settings = scene.virtual_reflections
     settings.resolution = "256"
     settings.combine = combine
+    # The paper's method: a neighbour on the object's right is on the right face of its map, so
+    # the two objects show in each other (the camera view treats the surroundings as distant).
+    settings.method = "PAPER"
     return scene
 
 

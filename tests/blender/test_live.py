@@ -21,6 +21,7 @@ def make_shot(resolution="512"):
     plate = ramp_plate(96, 64)
     scene.virtual_reflections.plate_image = plate
     scene.virtual_reflections.resolution = resolution
+    scene.virtual_reflections.method = "PAPER"  # its maps depend on the bounds: moves show
     bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=16, ring_count=8)
     ball = bpy.context.active_object
     ball.name = "Ball"

@@ -18,6 +18,7 @@ def make_shot(resolution="256", radius=1.0, location=(0.0, 0.0, 0.0), generate=T
     settings = scene.virtual_reflections
     settings.plate_image = plate
     settings.resolution = resolution
+    settings.method = "PAPER"  # the previews draw the paper's segmentation
     bpy.ops.mesh.primitive_uv_sphere_add(
         radius=radius, segments=16, ring_count=8, location=location
     )
