@@ -5,6 +5,7 @@
         [--method paper|frustum] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
     python -m virtual_reflections bench [--repeat N] [--chart PNG]
+    python -m virtual_reflections evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
@@ -94,6 +95,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="time table building and applying against py360convert")
     p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
     p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
+    p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
+    p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write DIR/accuracy.json, DIR/images/accuracy_*.png and the tables of "
+        "DIR/accuracy.md (default: docs; with --quick nothing unless given)",
+    )
+    p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
     return parser
 
 
@@ -165,6 +176,13 @@ def main(argv=None) -> int:
             run_envmap(args)
         elif args.command == "segment":
             run_segment(args)
+        elif args.command == "evaluate":
+            from .evaluate import StudyInputError, run_command
+
+            try:
+                run_command(quick=args.quick, out=args.out, hdris=args.hdri, jobs=args.jobs)
+            except StudyInputError as exc:
+                raise UsageError(str(exc)) from exc
         else:
             from .bench import run_bench, run_sweep
 

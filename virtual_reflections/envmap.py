@@ -14,7 +14,8 @@ import threading
 import numpy as np
 
 from .colour import clean_plate
-from .mipmap import build_pyramid, pyramid_size
+from .frustum import FILL_BINS, fill_profile
+from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
 from .params import Params
 from .table import LookupTable, lookup_table
@@ -48,16 +49,34 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
         )
     first = table.first_level
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
-    pyramid = build_pyramid(plate, table.levels, first, out=_scratch("pyramid", (rows, 3)))
-    taps = _scratch("taps", table.index.shape + (3,))
-    out = np.empty((table.index.shape[0], 3), np.float32)
-
-    def gather(a, b):  # one block of texels: its 8 taps, then their weighted sum
-        np.take(pyramid, table.index[a:b], axis=0, mode="clip", out=taps[a:b])
-        np.einsum("tkc,tk->tc", taps[a:b], table.weight[a:b], out=out[a:b])
-
-    for_blocks(gather, out.shape[0])
+    fill = table.fill
+    extra = FILL_BINS if fill is not None else 0
+    source = _scratch("pyramid", (rows + extra, 3))
+    pyramid = build_pyramid(plate, table.levels, first, out=source[:rows])
+    if fill is not None:
+        shapes = level_shapes(seg.height, seg.width, table.levels)
+        level = level_view(pyramid, shapes, fill.level, first)
+        fill_profile(
+            level, fill.bins, fill.window, fill.counts, fill.saturation, out=source[fill.base :]
+        )
+    out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
+    for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):
+        _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))
+
+
+def _gather(source, texels, index, weight, out) -> None:
+    """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
+    taps = _scratch("taps", index.shape + (3,))
+
+    def gather(a, b):  # one block of texels: its taps, then their weighted sum
+        np.take(source, index[a:b], axis=0, mode="clip", out=taps[a:b])
+        if texels is None:
+            np.einsum("tkc,tk->tc", taps[a:b], weight[a:b], out=out[a:b])
+        else:
+            out[texels[a:b]] = np.einsum("tkc,tk->tc", taps[a:b], weight[a:b])
+
+    for_blocks(gather, index.shape[0])
 
 
 def environment_map(

@@ -7,13 +7,32 @@ view the plate is a pinhole image (CONVENTIONS.md):
     f = (W / 2) / tan(hfov / 2);  direction d (z > 0) is seen at
     px = W/2 - f d.x / d.z,  py = H/2 - f d.y / d.z      (continuous plate coordinates)
 
-so every direction the plate sees is placed exactly. Directions it does not see (more than
-90 % of a mirror sphere's) are extended from the plate's nearest edge: the direction is
-clamped, in azimuth and elevation, onto the frustum, and the plate is read there through a
-blur that grows with the angle between the direction and its clamped twin — sky continues
-from the top band, ground from the bottom band, the sides and the back from the side bands,
-fading toward their local average instead of repeating misplaced detail. The blur is capped
-at a share of the plate height so the sky stays sky and the ground stays ground.
+so every direction the plate sees is placed exactly. Three kinds of texel:
+
+- **seen** (the texel's centre projects into the plate): the mean of n x n bilinear samples
+  of the plate at the projections of n x n directions spread evenly over the texel
+  (`supersample_taps`, n = SUPERSAMPLE), on level 0 of the mip pyramid while the samples are
+  less than 4 pixels apart, else on the level where they are 2-4 pixels apart — a box filter
+  over the texel's footprint, as a renderer supersamples a pixel. (One trilinear tap at the
+  footprint's mip level blurs far more: 34 dB against 58 dB where the plate sees, on the
+  accuracy study's ground truth; docs/accuracy.md.)
+- **near** (unseen, less than `extend_fade` degrees from the frustum): the direction is
+  clamped, in azimuth and elevation, onto the frustum, and the plate is read there through a
+  blur that grows with the angle between the direction and its clamped twin — sky continues
+  from the top band, ground from the bottom band, the sides from the side bands; the blur is
+  capped at a share of the plate height. With the angle this extension fades (a smoothstep)
+  into
+- **the fill**: a robust average of the plate that depends on elevation only (in the camera
+  frame): the log-average (per channel) of the plate pixels within `fill_width` degrees of the
+  texel's elevation, the window's centre held inside the plate's own range of elevations, so
+  near the horizon it is the rows at that elevation and above or below the plate the top or
+  bottom band. Beyond the plate the window widens by `fill_spread` degrees per degree, so far
+  from the plate the fill tends to the whole plate's log-average (a narrow plate's top band is
+  a poor guess for the zenith). A log-average because a sun or a lit window in view makes a
+  plain mean far too bright for the directions that show neither; its colour is kept by
+  `fill_saturation` (the plate's tint is a poor guess for what it does not show).
+
+Fade and fill are defined in angles, not texels, so the map's width does not change them.
 """
 
 from __future__ import annotations
@@ -22,11 +41,42 @@ import math
 
 import numpy as np
 
+from .layouts import cube_directions, latlong_directions
+
+FILL_BINS = 181  # the fill profile: 1-degree bins of camera-frame elevation, -90 .. 90
+FILL_ROWS = 96  # the fill is computed on the first mip level at most this many rows high
+
 
 def intrinsics_from_hfov(width: int, height: int, hfov_deg: float):
     """(fx, fy, cx, cy) in plate pixels of a centred pinhole with square pixels."""
     f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
     return f, f, width / 2.0, height / 2.0
+
+
+def clamp_to_frustum(directions, width, height, intrinsics):
+    """Camera-frame `directions` (..., 3) clamped in azimuth and elevation onto the plate's
+    frustum: ((..., 2) float32 continuous plate position of the clamped direction, (...,)
+    float32 angle in radians between the direction and its clamped twin; 0 inside)."""
+    fx, fy, cx, cy = intrinsics
+    d = np.asarray(directions, dtype=np.float32)
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    norm = np.sqrt(x * x + y * y + z * z)
+    norm = np.where(norm > 0, norm, 1.0)
+    azimuth = np.arctan2(x, z)  # + toward the plate's left
+    elevation = np.arcsin(np.clip(y / norm, -1.0, 1.0))
+    a = np.clip(azimuth, math.atan((cx - width) / fx), math.atan(cx / fx))
+    cos_a = np.cos(a)
+    # The frame's top and bottom edges at this azimuth: y / z = tan(e) / cos(a) = (cy - py) / fy.
+    e = np.clip(elevation, np.arctan((cy - height) / fy * cos_a), np.arctan(cy / fy * cos_a))
+    px = cx - fx * np.tan(a)
+    py = cy - fy * np.tan(e) / cos_a
+    position = np.stack((np.clip(px, 0.0, width), np.clip(py, 0.0, height)), axis=-1)
+    cos_e = np.cos(e)
+    clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
+    cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
+    angle = np.arccos(cosine)
+    angle[cosine > 1.0 - 1e-6] = 0.0  # float32 round-off inside the frustum
+    return position.astype(np.float32), angle.astype(np.float32)
 
 
 def plate_positions(
@@ -46,25 +96,210 @@ def plate_positions(
     log2 of `blur` x (angle to the frustum in radians) x fx pixels, at most
     log2(max_blur x height)). Inside the frustum the blur level is 0.
     """
-    fx, fy, cx, cy = intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
-    d = np.asarray(directions, dtype=np.float32)
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    norm = np.sqrt(x * x + y * y + z * z)
-    norm = np.where(norm > 0, norm, 1.0)
-    azimuth = np.arctan2(x, z)  # + toward the plate's left
-    elevation = np.arcsin(np.clip(y / norm, -1.0, 1.0))
-    a = np.clip(azimuth, math.atan((cx - width) / fx), math.atan(cx / fx))
-    cos_a = np.cos(a)
-    # The frame's top and bottom edges at this azimuth: y / z = tan(e) / cos(a) = (cy - py) / fy.
-    e = np.clip(elevation, np.arctan((cy - height) / fy * cos_a), np.arctan(cy / fy * cos_a))
-    px = cx - fx * np.tan(a)
-    py = cy - fy * np.tan(e) / cos_a
-    position = np.stack((np.clip(px, 0.0, width), np.clip(py, 0.0, height)), axis=-1)
-    # Angle between the direction and its clamped twin.
-    cos_e = np.cos(e)
-    clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
-    cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
-    pixels = blur * np.arccos(cosine) * fx
+    intrinsics = intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
+    position, angle = clamp_to_frustum(directions, width, height, intrinsics)
+    pixels = blur * angle * intrinsics[0]
     cap = math.log2(max(max_blur * height, 1.0))
     lod = np.minimum(np.log2(np.maximum(pixels, 1.0)), cap)
-    return position.astype(np.float32), lod.astype(np.float32)
+    return position, lod.astype(np.float32)
+
+
+def fade_weight(angle: np.ndarray, fade_deg: float) -> np.ndarray:
+    """Weight of the edge extension at `angle` (radians) from the frustum: 1 at the frustum,
+    falling with a smoothstep to 0 at `fade_deg` degrees (float32)."""
+    if fade_deg <= 0:
+        return (angle <= 0).astype(np.float32)
+    t = np.clip(angle / np.float32(math.radians(fade_deg)), 0.0, 1.0)
+    return (1.0 - t * t * (3.0 - 2.0 * t)).astype(np.float32)
+
+
+# --- seen texels: a supersampled box filter ------------------------------------------------
+
+
+def _directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float):
+    """Directions (n, 3) through the texels `ids` (flat indices) shifted by (dx, dy) texels."""
+    if layout == "latlong":
+        row, col = np.divmod(ids, size)
+        return latlong_directions(col + 0.5 + dx, row + 0.5 + dy, size)
+    row, col = np.divmod(ids, size)
+    face, frow = np.divmod(row, size)
+    return cube_directions(face, col + dx, frow + dy, size)
+
+
+def seen_footprints(layout, size, directions, width, height, intrinsics):
+    """The texels whose centre the plate sees, and their footprints on the plate.
+
+    directions: (T, 3) texel-centre directions. Returns (ids (S,) int64 flat texel indices,
+    rect (4, S) float64 x0, x1, y0, y1 in plate pixels: the rectangle between the projections
+    of the texel's corners (each side the mean of its two corners), widened to at least one
+    pixel about the centre's projection and clipped to the plate).
+    """
+    fx, fy, cx, cy = intrinsics
+    d = np.asarray(directions, np.float64)
+    z = d[:, 2]
+    ahead = z > 1e-9
+    zs = np.where(ahead, z, 1.0)
+    px = cx - fx * d[:, 0] / zs
+    py = cy - fy * d[:, 1] / zs
+    ids = np.flatnonzero(ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height))
+    corners = {}
+    ok = np.ones(ids.size, bool)
+    for dx in (-0.5, 0.5):
+        for dy in (-0.5, 0.5):
+            c = _directions_at(layout, size, ids, dx, dy)
+            ok &= c[:, 2] > 1e-9
+            cz = np.where(c[:, 2] > 1e-9, c[:, 2], 1.0)
+            corners[dx, dy] = (cx - fx * c[:, 0] / cz, cy - fy * c[:, 1] / cz)
+    ids = ids[ok]
+    px, py = px[ids], py[ids]
+
+    def side(a, b, axis):
+        return 0.5 * (corners[a][axis][ok] + corners[b][axis][ok])
+
+    xa, xb = side((-0.5, -0.5), (-0.5, 0.5), 0), side((0.5, -0.5), (0.5, 0.5), 0)
+    ya, yb = side((-0.5, -0.5), (0.5, -0.5), 1), side((-0.5, 0.5), (0.5, 0.5), 1)
+    x0, x1 = np.minimum(xa, xb), np.maximum(xa, xb)
+    y0, y1 = np.minimum(ya, yb), np.maximum(ya, yb)
+    # Never empty (the filter then tends to bilinear interpolation at the centre).
+    x0, x1 = np.minimum(x0, px - 1e-3), np.maximum(x1, px + 1e-3)
+    y0, y1 = np.minimum(y0, py - 1e-3), np.maximum(y1, py + 1e-3)
+    rect = np.stack(
+        (
+            np.clip(x0, 0, width),
+            np.clip(x1, 0, width),
+            np.clip(y0, 0, height),
+            np.clip(y1, 0, height),
+        )
+    )
+    return ids, rect
+
+
+SUPERSAMPLE = 4  # seen texels: n x n bilinear samples over the footprint
+
+
+def supersample_levels(rect, shapes, n: int = SUPERSAMPLE) -> np.ndarray:
+    """(S,) int32: the mip level each seen texel is sampled on. Level 0 while the samples are
+    less than 4 pixels apart (a rectangle `rect` (4, S) at most 4 n pixels wide); beyond, the
+    level on which they are 2 to 4 pixels apart (so the bilinear samples never skip pixels)."""
+    x0, x1, y0, y1 = rect
+    spacing = np.maximum(np.maximum(x1 - x0, y1 - y0), 1e-9) / n
+    level = np.floor(np.log2(np.maximum(spacing, 1.0))) - 1
+    return np.clip(level, 0, len(shapes) - 1).astype(np.int32)
+
+
+def supersample_taps(layout, size, ids, intrinsics, level, shapes, offsets, n: int = SUPERSAMPLE):
+    """Taps (S, 4 n^2) int32 and weights (S, 4 n^2) float32 for the texels `ids`: the mean of
+    n x n bilinear samples of the plate at the projections of n x n directions spread evenly
+    over each texel (its footprint, sampled as a renderer supersamples a pixel), read on mip
+    `level` (S,) (`supersample_levels`) of the flat bordered pyramid with level `offsets`."""
+    fx, fy, cx, cy = intrinsics
+    scale = (2.0 ** -level.astype(np.float64))[:, None]
+    widths = np.array([s[1] for s in shapes], np.int64)[level][:, None]
+    heights = np.array([s[0] for s in shapes], np.int64)[level][:, None]
+    index = np.empty((ids.size, n * n, 4), np.int64)
+    weight = np.empty((ids.size, n * n, 4), np.float64)
+    k = 0
+    for sy in range(n):
+        for sx in range(n):
+            d = _directions_at(layout, size, ids, (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5)
+            z = np.where(d[:, 2] > 1e-9, d[:, 2], 1e-9)
+            px = np.clip(cx - fx * d[:, 0] / z, 0, None)
+            py = np.clip(cy - fy * d[:, 1] / z, 0, None)
+            u, v = px * scale[:, 0] - 0.5, py * scale[:, 0] - 0.5
+            i0, j0 = np.floor(u), np.floor(v)
+            au, av = u - i0, v - j0
+            cols = np.clip(i0.astype(np.int64)[:, None] + [0, 1], -1, widths)
+            rows = np.clip(j0.astype(np.int64)[:, None] + [0, 1], -1, heights)
+            w2 = (widths + 2)[:, 0]
+            base = (
+                offsets[level][:, None, None]
+                + (rows + 1)[:, :, None] * w2[:, None, None]
+                + (cols + 1)[:, None, :]
+            )
+            index[:, k] = base.reshape(-1, 4)
+            wy = np.stack((1 - av, av), -1)
+            wx = np.stack((1 - au, au), -1)
+            weight[:, k] = (wy[:, :, None] * wx[:, None, :]).reshape(-1, 4) / (n * n)
+            k += 1
+    m = ids.size
+    return index.reshape(m, -1).astype(np.int32), weight.reshape(m, -1).astype(np.float32)
+
+
+# --- the fill: a robust average of the plate by elevation ---------------------------------------
+
+
+def fill_level(shapes) -> int:
+    """The mip level the fill is computed on: the first at most FILL_ROWS rows high."""
+    for i, (h, _) in enumerate(shapes):
+        if h <= FILL_ROWS:
+            return i
+    return len(shapes) - 1
+
+
+def fill_geometry(shape, level: int, intrinsics, width_deg: float, spread: float = 0.0):
+    """What the fill needs of a plate's geometry at mip `level` of shape (h, w).
+
+    Returns (bins (h * w,) int64: each pixel's 1-degree elevation bin, window (2, FILL_BINS)
+    int64: for every bin of the profile the half-open range [lo, hi) of pixel bins it averages,
+    counts (FILL_BINS + 1,) float64 cumulative pixel counts per bin). The window is the bins
+    within `width_deg` of the bin's elevation, its centre held `width_deg` inside the plate's
+    own range of elevations (so above the plate: the top band; below: the bottom band).
+    """
+    fx, fy, cx, cy = intrinsics
+    h, w = shape
+    s = 2.0**level
+    py, px = np.mgrid[0:h, 0:w].astype(np.float64)
+    dx, dy = -((px + 0.5) * s - cx) / fx, -((py + 0.5) * s - cy) / fy
+    elevation = np.degrees(np.arctan2(dy, np.sqrt(dx * dx + 1.0))).ravel()
+    bins = np.clip(np.rint(elevation + 90.0), 0, FILL_BINS - 1).astype(np.int64)
+    counts = np.concatenate(([0.0], np.cumsum(np.bincount(bins, minlength=FILL_BINS))))
+    lo_e, hi_e = elevation.min() + width_deg, elevation.max() - width_deg
+    centre = np.arange(FILL_BINS) - 90.0
+    centre = (
+        np.clip(centre, lo_e, hi_e) if lo_e <= hi_e else np.full(FILL_BINS, 0.5 * (lo_e + hi_e))
+    )
+    half = width_deg + spread * np.abs(np.arange(FILL_BINS) - 90.0 - centre)
+    lo = np.clip(np.rint(centre - half + 90.0), 0, FILL_BINS - 1).astype(np.int64)
+    hi = np.clip(np.rint(centre + half + 90.0), 0, FILL_BINS - 1).astype(np.int64) + 1
+    # Never an empty window: widen to the nearest bins that hold pixels.
+    empty = counts[hi] - counts[lo] <= 0
+    if empty.any():
+        lo[empty], hi[empty] = bins.min(), bins.max() + 1
+    return bins, np.stack((lo, hi)), counts
+
+
+REC709_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def fill_profile(
+    level_pixels: np.ndarray, bins, window, counts, saturation: float = 1.0, out=None
+) -> np.ndarray:
+    """The fill (FILL_BINS, 3) float32 of one frame: per elevation bin the log-average (per
+    channel) of the pixels `level_pixels` (h, w, 3) in its window (see fill_geometry), its
+    colour kept by `saturation` (0: grey of the same luminance)."""
+    pixels = np.maximum(level_pixels.reshape(-1, 3), 0.0)
+    eps = 1e-3 * pixels.mean(0) + 1e-12  # scale-free: black pixels count as 1/1000 of the mean
+    logs = np.log(pixels + eps)
+    lo, hi = window
+    n = counts[hi] - counts[lo]
+    out = np.empty((FILL_BINS, 3), np.float32) if out is None else out
+    for c in range(3):
+        total = np.concatenate(([0.0], np.cumsum(np.bincount(bins, logs[:, c], FILL_BINS))))
+        out[:, c] = np.exp((total[hi] - total[lo]) / n) - eps[c]
+    if saturation != 1.0:
+        luma = (out @ REC709_LUMA)[:, None]
+        out[:] = luma + np.float32(saturation) * (out - luma)
+    return out
+
+
+def fill_taps(directions, base: int):
+    """The two taps (T, 2) int32 and their weights (T, 2) float32 that interpolate the fill
+    profile (rows `base` .. `base` + FILL_BINS - 1 of the source) at each direction's elevation."""
+    d = np.asarray(directions, np.float32)
+    norm = np.sqrt((d * d).sum(-1))
+    elevation = np.degrees(np.arcsin(np.clip(d[:, 1] / np.where(norm > 0, norm, 1), -1, 1)))
+    b = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
+    b0 = np.minimum(np.floor(b), FILL_BINS - 2)
+    frac = (b - b0).astype(np.float32)
+    index = (base + b0.astype(np.int32))[:, None] + np.arange(2, dtype=np.int32)
+    return index.astype(np.int32), np.stack((1 - frac, frac), -1).astype(np.float32)

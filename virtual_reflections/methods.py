@@ -2,7 +2,8 @@
 
 METHODS maps a name to `fn(plate_linear (H, W, 3), bbox, hfov_deg, width) -> (width/2, width, 3)`
 float32 lat-long in the camera frame (CONVENTIONS.md). The accuracy study
-(`python -m virtual_reflections evaluate`) charts them against each other.
+(`python -m virtual_reflections evaluate`) charts them against each other; "frustum" (the
+add-on's Camera View, with Params' defaults) is the product's default.
 """
 
 from __future__ import annotations
@@ -20,7 +21,14 @@ def _engine(**kwargs):
 
 
 METHODS = {
+    # the product's default: the edges extended into every unseen direction (left stays left)
     "frustum": _engine(method="frustum"),
-    "frustum, sharp edges": _engine(method="frustum", extend_blur=0.25, extend_cap=0.03),
-    "frustum, soft edges": _engine(method="frustum", extend_blur=4.0, extend_cap=0.5),
+    # the edges fade within 10 degrees into a log-average of the plate by elevation, widening
+    # toward the whole plate's beyond its top and bottom
+    "frustum, fill": _engine(method="frustum", extend_fade=10.0),
+    # the fill by elevation alone, never widening, and a longer fade
+    "frustum, sharp fill": _engine(method="frustum", extend_fade=20.0, fill_spread=0.0),
+    # one log-average of the whole plate instead of one per elevation
+    "frustum, flat fill": _engine(method="frustum", extend_fade=10.0, fill_width=90.0),
 }
+DEFAULT = "frustum"

@@ -27,6 +27,17 @@ class Params:
                placed exactly by the camera's field of view, blurred edge extension outside).
     extend_blur, extend_cap: the frustum method's blur outside the plate's view — pixels of
                blur per pixel of angular distance, and its cap as a share of the plate height.
+    extend_fade: degrees from the plate's frustum over which the frustum method's edge
+               extension fades into the fill (a log-average of the plate by elevation; 10 is
+               the accuracy study's choice), or None (the default) to extend the edges into
+               every direction: the fill depends on elevation only, so it loses what is left
+               and right of the object, which the product promises to keep.
+    fill_width: half-width in degrees of the elevation window the fill averages.
+    fill_saturation: how much of the plate's colour the fill keeps (0: neutral grey of the
+               same luminance, 1: the plate's colour).
+    fill_spread: how fast the fill's window widens beyond the plate's elevations (degrees of
+               half-width per degree beyond), so far above or below the plate the fill tends
+               to the whole plate's log-average; 0 keeps the top or bottom band's.
     intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
                aspect), for the frustum method; overrides hfov.
     """
@@ -39,6 +50,10 @@ class Params:
     extend_blur: float = 1.0
     extend_cap: float = 0.125
     intrinsics: tuple | None = None
+    extend_fade: float | None = None
+    fill_width: float = 2.0
+    fill_saturation: float = 0.5
+    fill_spread: float = 1.0
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -59,6 +74,16 @@ class Params:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not (0.0 <= self.extend_blur <= 100.0 and 0.0 < self.extend_cap <= 1.0):
             raise ValueError("extend_blur must be in [0, 100] and extend_cap in (0, 1]")
+        if self.extend_fade is not None and not (
+            math.isfinite(self.extend_fade) and 0.0 <= self.extend_fade <= 180.0
+        ):
+            raise ValueError(f"extend_fade must be None or 0..180 degrees, got {self.extend_fade}")
+        if not (math.isfinite(self.fill_width) and 0.5 <= self.fill_width <= 90.0):
+            raise ValueError(f"fill_width must be 0.5..90 degrees, got {self.fill_width}")
+        if not (math.isfinite(self.fill_saturation) and 0.0 <= self.fill_saturation <= 1.0):
+            raise ValueError(f"fill_saturation must be 0..1, got {self.fill_saturation}")
+        if not (math.isfinite(self.fill_spread) and 0.0 <= self.fill_spread <= 10.0):
+            raise ValueError(f"fill_spread must be 0..10, got {self.fill_spread}")
         if self.intrinsics is not None and (
             len(self.intrinsics) != 4
             or not all(math.isfinite(v) for v in self.intrinsics)

@@ -9,11 +9,18 @@ Anti-aliasing: the texel's footprint on the plate (how far the plate position mo
 one texel, from the positions half a texel to either side) picks a mip level, so where a
 large plate region is squeezed onto few texels (the ring F on the front face, the front
 face's centre in the continuous limit) each texel averages the area it covers.
+
+The frustum method (frustum.py) has three groups of texels, each with its own number of
+taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps), those near
+the plate's frustum (8 trilinear taps of the blurred edge extension, faded into 2 taps of the
+fill profile) and the rest (the 2 fill taps). The fill profile is computed per frame and
+stored after the pyramid, so it is one more block of rows the same gathers read.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +53,24 @@ class LookupTable:
     weight: np.ndarray
     position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
     lod: np.ndarray  # (H, W) float32 mip level of each texel
+    # index/weight hold the taps of the texels `texels` ((n,) int64 flat indices; None: every
+    # texel in order). `groups`: further (texels, index (n, K), weight (n, K)) with other K.
+    texels: np.ndarray | None = None
+    groups: tuple = ()
+    fill: Fill | None = None  # the frustum method's fill profile, computed per frame
+
+
+@dataclass(frozen=True, eq=False)
+class Fill:
+    """Where the frustum method's fill profile comes from (frustum.fill_geometry) and goes:
+    computed on pyramid level `level`, written to rows `base` .. `base` + FILL_BINS - 1."""
+
+    level: int
+    base: int
+    saturation: float
+    bins: np.ndarray
+    window: np.ndarray
+    counts: np.ndarray
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
@@ -126,37 +151,134 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     np.multiply(ax, ay, out=weight[..., 3])
 
 
+def _frozen(*arrays):
+    for a in arrays:
+        if a is not None:
+            a.flags.writeable = False
+
+
+def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
+    """The frustum method's table (see the module docstring and frustum.py)."""
+    shape = map_shape(layout, size)
+    width, height = seg.width, seg.height
+    intrinsics = params.intrinsics or frustum.intrinsics_from_hfov(width, height, params.hfov)
+    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+    count = directions.shape[0]
+    position = np.empty((count, 2), np.float32)
+    angle = np.empty(count, np.float32)
+
+    def project(a, b):
+        position[a:b], angle[a:b] = frustum.clamp_to_frustum(
+            directions[a:b], width, height, intrinsics
+        )
+
+    for_blocks(project, count)
+    position = position.reshape(shape + (2,))
+    shapes = level_shapes(height, width)
+    top = len(shapes) - 1
+    pixels = params.extend_blur * angle * intrinsics[0]
+    blur = np.minimum(
+        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
+    )
+    lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
+
+    seen, rect = frustum.seen_footprints(layout, size, directions, width, height, intrinsics)
+    seen_level = frustum.supersample_levels(rect, shapes)
+    unseen = np.ones(count, bool)
+    unseen[seen] = False
+    filled = params.extend_fade is not None
+    weight_ext = (
+        frustum.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
+    )
+    near = np.flatnonzero(unseen & (weight_ext > 0))
+    far = np.flatnonzero(unseen & (weight_ext <= 0))
+    used = [int(lod[near].min()) if near.size else top, int(seen_level.min()) if seen.size else top]
+    deepest = [
+        int(lod[near].max()) + 1 if near.size else 0,
+        int(seen_level.max()) if seen.size else 0,
+    ]
+    level_fill = frustum.fill_level(shapes) if filled else None
+    if filled:
+        used.append(level_fill)
+        deepest.append(level_fill)
+    first = min(min(used), max(top - 1, 0))
+    levels = min(max(deepest) + 1, top + 1)
+    offsets = level_offsets(shapes, first)
+    fill = None
+    if filled:
+        bins, window, counts = frustum.fill_geometry(
+            shapes[level_fill], level_fill, intrinsics, params.fill_width, params.fill_spread
+        )
+        base = int(level_offsets(shapes[:levels], first)[-1])
+        fill = Fill(level_fill, base, params.fill_saturation, bins, window, counts)
+        _frozen(bins, window, counts)
+
+    # Near the frustum: the blurred edge extension (8 trilinear taps) faded into the fill.
+    taps = 10 if filled else 8
+    near_index = np.empty((near.size, taps), np.int32)
+    near_weight = np.empty((near.size, taps), np.float32)
+    px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
+    ext_index, ext_weight = near_index[:, :8], np.empty((near.size, 8), np.float32)
+
+    def trilinear(a, b):
+        idx = np.empty((b - a, 8), np.int32)
+        _bilinear(px[a:b], py[a:b], lod[near[a:b]], shapes, offsets, idx, ext_weight[a:b])
+        ext_index[a:b] = idx
+
+    for_blocks(trilinear, near.size)
+    near_weight[:, :8] = ext_weight * weight_ext[near, None]
+    if filled:
+        fill_index, fill_weight = frustum.fill_taps(directions[near], fill.base)
+        near_index[:, 8:] = fill_index
+        near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
+    groups = []
+    if seen.size:
+        seen_index, seen_weight = frustum.supersample_taps(
+            layout, size, seen, intrinsics, seen_level, shapes, offsets
+        )
+        groups.append((seen, seen_index, seen_weight))
+    if far.size:
+        groups.append((far, *frustum.fill_taps(directions[far], fill.base)))
+    for g in groups:
+        _frozen(*g)
+    _frozen(near, near_index, near_weight, position, lod)
+    return LookupTable(
+        segmentation=seg,
+        layout=layout,
+        size=size,
+        shape=shape,
+        levels=levels,
+        first_level=first,
+        index=near_index,
+        weight=near_weight,
+        position=position,
+        lod=lod.reshape(shape),
+        texels=near,
+        groups=tuple(groups),
+        fill=fill,
+    )
+
+
 def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTable:
     """Build the table for a segmentation (uncached; see `lookup_table`). `params`: the
     Params (or, for the paper's method, just the number of triangles)."""
     if not isinstance(params, Params):
         params = Params(triangles=int(params))
+    if params.method == "frustum":
+        return _build_frustum(seg, layout, size, params)
     shape = map_shape(layout, size)
     directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     count = directions.shape[0]
     position = np.empty((count, 2), np.float32)
 
-    blur = np.zeros(count, np.float32)
-
     def project(a, b):
-        if params.method == "frustum":
-            position[a:b], blur[a:b] = frustum.plate_positions(
-                directions[a:b],
-                seg.width,
-                seg.height,
-                params.hfov,
-                params.extend_blur,
-                params.extend_cap,
-                params.intrinsics,
-            )
-        else:
-            position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
+        position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
 
     for_blocks(project, count)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
-    lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
+    lod = np.clip(_lod(layout, size, position).ravel(), 0.0, top)
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
     offsets = level_offsets(shapes, first)

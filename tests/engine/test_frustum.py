@@ -51,7 +51,7 @@ def test_frustum_map_reproduces_a_plate_of_the_map():
         & (np.abs(dirs[..., 1] / dirs[..., 2]) < 0.3)
     )
     expected = np.stack([0.5 + 0.5 * dirs[..., 0], 0.5 + 0.5 * dirs[..., 1], dirs[..., 2]], -1)
-    assert np.abs(env[inside] - expected[inside]).max() < 0.01
+    assert np.abs(env[inside] - expected[inside]).max() < 0.002
 
 
 def test_frustum_needs_the_field_of_view():
@@ -69,3 +69,118 @@ def test_shifted_lens_and_non_square_pixels():
     pos, lod = plate_positions(d, w, h, intrinsics=(fx, fy, cx, cy))
     assert np.abs(pos[..., 0] - px).max() < 1e-3 and np.abs(pos[..., 1] - py).max() < 1e-3
     assert lod.max() == 0.0
+
+
+def _map(plate, hfov=60.0, width=256, **kw):
+    kw.setdefault("extend_fade", 10.0)  # the fill (not the default)
+    return environment_map(
+        plate.astype(np.float32),
+        (0, 0, 1, 1),
+        Params(method="frustum", hfov=hfov, **kw),
+        "latlong",
+        width,
+    )
+
+
+def _texel(direction, width):
+    """(row, column) of the lat-long texel holding camera-frame `direction` (CONVENTIONS.md)."""
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    lat, lon = math.asin(d[1]), math.atan2(d[0], d[2])
+    row = int((0.5 - lat / math.pi) * (width // 2))
+    col = int((0.5 - lon / (2 * math.pi)) * width)
+    return min(row, width // 2 - 1), col % width
+
+
+def test_seen_texels_average_their_footprint():
+    """A one-pixel checkerboard seen through texels many pixels wide averages to grey (one
+    bilinear tap per texel would alias or need a blurring mip level); a smooth plate is placed
+    exactly."""
+    w, h = 640, 360
+    py, px = np.mgrid[0:h, 0:w]
+    checker = np.repeat(((px + py) % 2).astype(np.float32)[..., None], 3, -1)
+    env = _map(checker, width=256)  # about 7 plate pixels per texel
+    r, c = _texel([0, 0, 1], 256)
+    assert np.abs(env[r - 5 : r + 5, c - 5 : c + 5] - 0.5).max() < 0.02
+
+
+def test_unseen_directions_fade_into_a_robust_average_by_elevation():
+    """Bright sky above, dark ground below: above the plate the map is bright, below dark; far
+    away both tend to the plate's log-average (not its mean: a small sun in view must not light
+    half the sphere)."""
+    w, h = 320, 180
+    plate = np.full((h, w, 3), 0.05, np.float32)
+    plate[: h // 2] = 0.8
+    plate[10:14, 150:154] = 5000.0  # a small, very bright sun
+    env = _map(plate, width=256)
+    half_v = math.atan(math.tan(math.radians(30)) * h / w)
+    above = env[_texel([0, math.tan(half_v + 0.35), 1], 256)]
+    below = env[_texel([0, -math.tan(half_v + 0.35), 1], 256)]
+    behind = env[_texel([0, 0, -1], 256)]
+    assert above.mean() > 2.0 * below.mean()
+    log_average = math.exp(0.5 * math.log(0.8) + 0.5 * math.log(0.05))
+    assert 0.5 * log_average < behind.mean() < 2.0 * log_average
+    assert plate.mean() > 10 * behind.mean()
+
+
+def test_fill_and_fade_do_not_depend_on_the_map_width():
+    """The same direction gets the same fill from a 128- and a 512-wide map (the fade and the
+    fill are angles, not texels); the plate is smooth so the texels' own size does not count."""
+    rng = np.random.default_rng(3)
+    rows = np.linspace(2.0, 0.2, 180, dtype=np.float32)[:, None, None]
+    plate = rows * (0.9 + 0.2 * rng.random((180, 320, 3))).astype(np.float32)
+    small, large = _map(plate, width=128), _map(plate, width=512)
+    near = [math.sin(math.radians(35)), 0.0, math.cos(math.radians(35))]  # 5 deg off the plate
+    for direction in ([0.0, 0.0, -1.0], [1.0, 0.2, 0.3], [0.0, 1.0, 0.4], near):
+        r, c = _texel(direction, 128)  # its 4 x 4 texels in the wider map share its centre
+        block = large[4 * r : 4 * r + 4, 4 * c : 4 * c + 4].mean((0, 1))
+        np.testing.assert_allclose(small[r, c], block, rtol=0.01)
+
+
+def test_fill_colour_and_the_old_extension():
+    plate = np.zeros((90, 160, 3), np.float32)
+    plate[...] = [0.4, 0.2, 0.1]
+    behind = _texel([0, 0, -1], 128)
+    grey = _map(plate, width=128, fill_saturation=0.0)[behind]
+    assert np.ptp(grey) < 1e-4 and grey[0] == pytest.approx(
+        0.2126 * 0.4 + 0.7152 * 0.2 + 0.0722 * 0.1, rel=1e-3
+    )
+    coloured = _map(plate, width=128, fill_saturation=1.0)[behind]
+    np.testing.assert_allclose(coloured, [0.4, 0.2, 0.1], rtol=1e-3)
+
+
+def test_the_default_keeps_left_on_the_left():
+    """The default extends the edges into every direction (no fill): a plate whose left half is
+    red is red everywhere to the left, behind the camera too, as the add-on promises. The
+    fill, which depends on elevation only, would make it purple."""
+    plate = np.zeros((90, 160, 3), np.float32)
+    plate[:, :80] = [1.0, 0.0, 0.0]  # the plate's left half red: +X
+    plate[:, 80:] = [0.0, 0.0, 1.0]
+    default = environment_map(plate, (0, 0, 1, 1), Params(method="frustum", hfov=60.0))
+    for direction in ([1, 0, 0], [1, 0.5, -0.5], [1, -0.3, -1]):
+        left = default[_texel(direction, 1024)]
+        assert left[0] > 0.9 and left[2] < 0.1, direction
+    filled = _map(plate, width=128)[_texel([1, 0, 0], 128)]
+    assert filled[0] < 0.5  # the fill mixes the two halves (per channel, in logs: dark)
+
+
+def test_frustum_cube_map_is_finite_and_places_the_plate():
+    w, h, hfov = 160, 90, 70.0
+    d = camera_frame_directions(w, h, hfov)
+    plate = np.stack([0.5 + 0.5 * d[..., 0], 0.5 + 0.5 * d[..., 1], d[..., 2]], -1)
+    cube = environment_map(
+        plate.astype(np.float32), (0, 0, 1, 1), Params(method="frustum", hfov=hfov), "cube", 64
+    )
+    assert cube.shape == (384, 64, 3) and np.isfinite(cube).all()
+    front = cube[4 * 64 : 5 * 64]  # +Z: the plate's centre
+    np.testing.assert_allclose(front[32, 32], [0.5, 0.5, 1.0], atol=0.02)
+
+
+def test_new_params_are_validated():
+    for bad in (
+        {"extend_fade": -1.0},
+        {"fill_width": 0.0},
+        {"fill_saturation": 2.0},
+        {"fill_spread": float("nan")},
+    ):
+        with pytest.raises(ValueError):
+            Params(method="frustum", hfov=60.0, **bad)
