@@ -156,7 +156,7 @@ def render_passes(
                     None,
                     maps_seconds,
                     render_seconds,
-                    tuple(generated.warnings),
+                    tuple(generated.warnings) + _method_note(settings, limit, len(done)),
                 )
             )
             if progress:
@@ -207,6 +207,19 @@ def render_passes(
                 if passes == "auto" and reports[-1].change < tolerance:
                     break
     return composite, rgba, reports
+
+
+CAMERA_NOTE = (
+    "Camera View treats the surroundings as distant, so nearby objects show little of each "
+    "other; the Paper method puts a neighbour on the side of the map that faces it"
+)
+
+
+def _method_note(settings, limit, count) -> tuple:
+    """A warning when passes would show little: several objects under Camera View."""
+    if limit > 1 and count > 1 and getattr(settings, "method", "PAPER") == "CAMERA":
+        return (CAMERA_NOTE,)
+    return ()
 
 
 def _pass_limit(passes, r_max):

@@ -279,3 +279,15 @@ def test_render_shot_passes(interreflect, tmp_path):
         timeout=300,
     )
     assert bad.returncode == 2 and "--passes" in bad.stderr
+
+
+def test_camera_view_says_why_objects_show_little_of_each_other(interreflect):
+    make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    bpy.context.scene.virtual_reflections.method = "CAMERA"
+    _, _, reports = run(interreflect, objects, 2)
+    assert interreflect.CAMERA_NOTE in reports[0].warnings
+    bpy.context.scene.virtual_reflections.method = "PAPER"
+    _, _, reports = run(interreflect, objects, 2)
+    assert interreflect.CAMERA_NOTE not in reports[0].warnings
