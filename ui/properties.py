@@ -83,19 +83,20 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         name="Method",
         items=(
             (
-                "PAPER",
-                "Paper (2004)",
-                "Ropinski et al.: the plate cut into regions around the "
-                "object's bounds and folded onto a cube",
-            ),
-            (
                 "CAMERA",
                 "Camera View",
-                "Place the plate exactly by the camera's field of view; "
-                "extend its edges, blurred, where the photo saw nothing",
+                "Place the plate exactly by the camera's field of view; where the photo saw "
+                "nothing, extend its edges into the sky, ground and sides it suggests (the most "
+                "accurate on the ground truth, docs/accuracy.md)",
+            ),
+            (
+                "PAPER",
+                "Paper (2004)",
+                "Ropinski et al.: the plate cut into regions around the object's bounds and "
+                "folded onto a cube (neighbouring objects show on the sides facing them)",
             ),
         ),
-        default="PAPER",
+        default="CAMERA",
     )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed

@@ -50,14 +50,20 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
     first = table.first_level
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
     fill = table.fill
-    extra = FILL_BINS if fill is not None else 0
+    extra = FILL_BINS * fill.sides if fill is not None else 0
     source = _scratch("pyramid", (rows + extra, 3))
     pyramid = build_pyramid(plate, table.levels, first, out=source[:rows])
     if fill is not None:
         shapes = level_shapes(seg.height, seg.width, table.levels)
         level = level_view(pyramid, shapes, fill.level, first)
         fill_profile(
-            level, fill.bins, fill.window, fill.counts, fill.saturation, out=source[fill.base :]
+            level,
+            fill.bins,
+            fill.window,
+            fill.counts,
+            fill.saturation,
+            out=source[fill.base :],
+            energy=fill.energy,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
     for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):

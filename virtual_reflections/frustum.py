@@ -22,15 +22,21 @@ so every direction the plate sees is placed exactly. Three kinds of texel:
   from the top band, ground from the bottom band, the sides from the side bands; the blur is
   capped at a share of the plate height. With the angle this extension fades (a smoothstep)
   into
-- **the fill**: a robust average of the plate that depends on elevation only (in the camera
-  frame): the log-average (per channel) of the plate pixels within `fill_width` degrees of the
-  texel's elevation, the window's centre held inside the plate's own range of elevations, so
-  near the horizon it is the rows at that elevation and above or below the plate the top or
-  bottom band. Beyond the plate the window widens by `fill_spread` degrees per degree, so far
-  from the plate the fill tends to the whole plate's log-average (a narrow plate's top band is
-  a poor guess for the zenith). A log-average because a sun or a lit window in view makes a
-  plain mean far too bright for the directions that show neither; its colour is kept by
-  `fill_saturation` (the plate's tint is a poor guess for what it does not show).
+- **the fill**: a robust average of the plate by elevation and side (in the camera frame).
+  Per elevation: the log-average (per channel) of the plate pixels within `fill_width`
+  degrees of the texel's elevation, the window's centre held inside the plate's own range of
+  elevations, so near the horizon it is the rows at that elevation and above or below the
+  plate the top or bottom band; beyond the plate the window widens by `fill_spread` degrees
+  per degree, so far from the plate the fill tends to the whole plate's. A log-average because
+  a sun or a lit window in view makes a plain mean far too bright for the directions that show
+  neither; but a log-average is darker than the light the plate holds, so it is brightened
+  toward the arithmetic mean's luminance by `fill_energy` (0.5: the geometric mean of the two).
+  Per side (`fill_sides`): the plate's left half gives the profile for the left, its right half
+  for the right (`side_weight`: ahead of the camera by the azimuth up to the plate's edges,
+  behind it returning to an even blend straight behind); both share the band's brightness, so
+  only their colour differs, and `fill_saturation` desaturates the tint they share (the
+  plate's tint is a poor guess for what it does not show) while keeping the difference between
+  them: what is left of the object in the plate stays on the left.
 
 Fade and fill are defined in angles, not texels, so the map's width does not change them.
 """
@@ -236,14 +242,19 @@ def fill_level(shapes) -> int:
     return len(shapes) - 1
 
 
-def fill_geometry(shape, level: int, intrinsics, width_deg: float, spread: float = 0.0):
+def fill_geometry(
+    shape, level: int, intrinsics, width_deg: float, spread: float = 0.0, sides: int = 1
+):
     """What the fill needs of a plate's geometry at mip `level` of shape (h, w).
 
-    Returns (bins (h * w,) int64: each pixel's 1-degree elevation bin, window (2, FILL_BINS)
-    int64: for every bin of the profile the half-open range [lo, hi) of pixel bins it averages,
-    counts (FILL_BINS + 1,) float64 cumulative pixel counts per bin). The window is the bins
-    within `width_deg` of the bin's elevation, its centre held `width_deg` inside the plate's
-    own range of elevations (so above the plate: the top band; below: the bottom band).
+    Returns (bins (h * w,) int64: each pixel's 1-degree elevation bin, plus FILL_BINS x its
+    side (0: the plate's left half, 1: its right half; with `sides` = 1 every pixel is side 0),
+    window (sides, 2, FILL_BINS) int64: for every side and bin of the profile the half-open
+    range [lo, hi) of elevation bins it averages, counts (sides, FILL_BINS + 1) float64
+    cumulative pixel counts per elevation bin). The window is the bins within `width_deg` of
+    the bin's elevation, its centre held `width_deg` inside the plate's own range of elevations
+    (so above the plate: the top band; below: the bottom band), widening by `spread` degrees
+    per degree beyond.
     """
     fx, fy, cx, cy = intrinsics
     h, w = shape
@@ -251,50 +262,123 @@ def fill_geometry(shape, level: int, intrinsics, width_deg: float, spread: float
     py, px = np.mgrid[0:h, 0:w].astype(np.float64)
     dx, dy = -((px + 0.5) * s - cx) / fx, -((py + 0.5) * s - cy) / fy
     elevation = np.degrees(np.arctan2(dy, np.sqrt(dx * dx + 1.0))).ravel()
-    bins = np.clip(np.rint(elevation + 90.0), 0, FILL_BINS - 1).astype(np.int64)
-    counts = np.concatenate(([0.0], np.cumsum(np.bincount(bins, minlength=FILL_BINS))))
-    lo_e, hi_e = elevation.min() + width_deg, elevation.max() - width_deg
-    centre = np.arange(FILL_BINS) - 90.0
-    centre = (
-        np.clip(centre, lo_e, hi_e) if lo_e <= hi_e else np.full(FILL_BINS, 0.5 * (lo_e + hi_e))
-    )
-    half = width_deg + spread * np.abs(np.arange(FILL_BINS) - 90.0 - centre)
-    lo = np.clip(np.rint(centre - half + 90.0), 0, FILL_BINS - 1).astype(np.int64)
-    hi = np.clip(np.rint(centre + half + 90.0), 0, FILL_BINS - 1).astype(np.int64) + 1
-    # Never an empty window: widen to the nearest bins that hold pixels.
-    empty = counts[hi] - counts[lo] <= 0
-    if empty.any():
-        lo[empty], hi[empty] = bins.min(), bins.max() + 1
-    return bins, np.stack((lo, hi)), counts
+    ebin = np.clip(np.rint(elevation + 90.0), 0, FILL_BINS - 1).astype(np.int64)
+    if sides == 2:
+        side = ((px + 0.5) * s >= cx).ravel().astype(np.int64)  # 0: left (+X), 1: right
+    else:
+        side = np.zeros(ebin.size, np.int64)
+    windows, counts = [], []
+    for k in range(sides):
+        mine = side == k
+        if not mine.any():  # a plate one pixel wide: both sides are the whole plate
+            mine = np.ones(ebin.size, bool)
+        b, e = ebin[mine], elevation[mine]
+        count = np.concatenate(([0.0], np.cumsum(np.bincount(b, minlength=FILL_BINS))))
+        lo_e, hi_e = e.min() + width_deg, e.max() - width_deg
+        centre = np.arange(FILL_BINS) - 90.0
+        centre = (
+            np.clip(centre, lo_e, hi_e) if lo_e <= hi_e else np.full(FILL_BINS, 0.5 * (lo_e + hi_e))
+        )
+        half = width_deg + spread * np.abs(np.arange(FILL_BINS) - 90.0 - centre)
+        lo = np.clip(np.rint(centre - half + 90.0), 0, FILL_BINS - 1).astype(np.int64)
+        hi = np.clip(np.rint(centre + half + 90.0), 0, FILL_BINS - 1).astype(np.int64) + 1
+        # Never an empty window: widen to the nearest bins that hold pixels.
+        empty = count[hi] - count[lo] <= 0
+        if empty.any():
+            lo[empty], hi[empty] = b.min(), b.max() + 1
+        windows.append(np.stack((lo, hi)))
+        counts.append(count)
+    bins = ebin + FILL_BINS * side
+    return bins, np.stack(windows), np.stack(counts)
 
 
 REC709_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def fill_profile(
-    level_pixels: np.ndarray, bins, window, counts, saturation: float = 1.0, out=None
+    level_pixels: np.ndarray,
+    bins,
+    window,
+    counts,
+    saturation: float = 1.0,
+    out=None,
+    energy: float = 0.0,
 ) -> np.ndarray:
-    """The fill (FILL_BINS, 3) float32 of one frame: per elevation bin the log-average (per
-    channel) of the pixels `level_pixels` (h, w, 3) in its window (see fill_geometry), its
-    colour kept by `saturation` (0: grey of the same luminance)."""
+    """The fill (sides * FILL_BINS, 3) float32 of one frame, sides = len(window): per side and
+    elevation bin the log-average (per channel) of the pixels `level_pixels` (h, w, 3) in its
+    window (see fill_geometry), brightened toward the arithmetic mean's luminance by `energy`
+    (0: the log-average, robust but darker than the light the plate holds; 1: the mean's
+    luminance; between: their geometric blend), its colour kept by `saturation` (0: grey of
+    the same luminance).
+
+    With two sides (the plate's left and right halves), both share the band's brightness (the
+    mean of their R, G, B means) and differ only in colour: `saturation` then desaturates what
+    they share and keeps the difference between them (a plate red on the left and blue on the
+    right stays red on the left).
+    """
+    sides = window.shape[0]
+    size = sides * FILL_BINS
     pixels = np.maximum(level_pixels.reshape(-1, 3), 0.0)
     eps = 1e-3 * pixels.mean(0) + 1e-12  # scale-free: black pixels count as 1/1000 of the mean
     logs = np.log(pixels + eps)
-    lo, hi = window
-    n = counts[hi] - counts[lo]
-    out = np.empty((FILL_BINS, 3), np.float32) if out is None else out
-    for c in range(3):
-        total = np.concatenate(([0.0], np.cumsum(np.bincount(bins, logs[:, c], FILL_BINS))))
-        out[:, c] = np.exp((total[hi] - total[lo]) / n) - eps[c]
-    if saturation != 1.0:
+    out = np.empty((size, 3), np.float32) if out is None else out
+    for k in range(sides):
+        lo, hi = window[k]
+        n = counts[k][hi] - counts[k][lo]
+        rows = slice(k * FILL_BINS, (k + 1) * FILL_BINS)
+        mean = np.empty((FILL_BINS, 3), np.float64)
+        for c in range(3):
+            for source, target in ((logs, out), (pixels, mean)):
+                if target is mean and energy <= 0:
+                    continue
+                t = np.bincount(bins, source[:, c], size)[rows]
+                total = np.concatenate(([0.0], np.cumsum(t)))
+                target[rows if target is out else slice(None), c] = (total[hi] - total[lo]) / n
+            out[rows, c] = np.exp(out[rows, c]) - eps[c]
+        if energy > 0:
+            ratio = np.maximum(mean @ REC709_LUMA, 1e-30) / np.maximum(
+                out[rows] @ REC709_LUMA, 1e-30
+            )
+            out[rows] *= (ratio**energy)[:, None].astype(np.float32)
+    np.maximum(out, 0.0, out=out)
+    if sides == 2:
+        left, right = out[:FILL_BINS], out[FILL_BINS:]
+        shared = 0.5 * (left.mean(1) + right.mean(1))[:, None]
+        left *= shared / np.maximum(left.mean(1), 1e-30)[:, None]
+        right *= shared / np.maximum(right.mean(1), 1e-30)[:, None]
+        if saturation != 1.0:
+            common = 0.5 * (left + right)
+            luma = (common @ REC709_LUMA)[:, None]
+            shift = np.float32(saturation - 1.0) * (common - luma)
+            np.maximum(left + shift, 0.0, out=left)
+            np.maximum(right + shift, 0.0, out=right)
+    elif saturation != 1.0:
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     return out
 
 
-def fill_taps(directions, base: int):
-    """The two taps (T, 2) int32 and their weights (T, 2) float32 that interpolate the fill
-    profile (rows `base` .. `base` + FILL_BINS - 1 of the source) at each direction's elevation."""
+def side_weight(directions, intrinsics, width: int) -> np.ndarray:
+    """(T,) float32 weight of the plate's left half in the fill of each camera-frame
+    direction: 1 at and beyond the plate's left edge (azimuth), 0 at and beyond its right,
+    0.5 straight ahead; behind the camera it returns linearly to 0.5 (straight behind: both
+    halves alike)."""
+    fx, _, cx, _ = intrinsics
+    d = np.asarray(directions, np.float64)
+    azimuth = np.arctan2(d[:, 0], d[:, 2])
+    left, right = math.atan(cx / fx), math.atan((width - cx) / fx)
+    ahead = np.where(
+        azimuth >= 0, np.sin(azimuth) / math.sin(left), np.sin(azimuth) / math.sin(right)
+    )
+    s = np.where(np.cos(azimuth) >= 0, np.clip(ahead, -1.0, 1.0), np.sin(azimuth))
+    return (0.5 + 0.5 * s).astype(np.float32)
+
+
+def fill_taps(directions, base: int, side=None):
+    """The taps (T, 2) int32 and their weights (T, 2) float32 that interpolate the fill
+    profile (rows `base` .. `base` + FILL_BINS - 1 of the source) at each direction's elevation.
+    With `side` ((T,) weight of the left half, `side_weight`): (T, 4) taps, the left profile's
+    two and the right profile's (rows `base` + FILL_BINS ..), weighted by side and 1 - side."""
     d = np.asarray(directions, np.float32)
     norm = np.sqrt((d * d).sum(-1))
     elevation = np.degrees(np.arcsin(np.clip(d[:, 1] / np.where(norm > 0, norm, 1), -1, 1)))
@@ -302,4 +386,10 @@ def fill_taps(directions, base: int):
     b0 = np.minimum(np.floor(b), FILL_BINS - 2)
     frac = (b - b0).astype(np.float32)
     index = (base + b0.astype(np.int32))[:, None] + np.arange(2, dtype=np.int32)
-    return index.astype(np.int32), np.stack((1 - frac, frac), -1).astype(np.float32)
+    weight = np.stack((1 - frac, frac), -1).astype(np.float32)
+    if side is None:
+        return index.astype(np.int32), weight
+    side = np.asarray(side, np.float32)[:, None]
+    index = np.concatenate((index, index + FILL_BINS), axis=1)
+    weight = np.concatenate((weight * side, weight * (1 - side)), axis=1)
+    return index.astype(np.int32), weight.astype(np.float32)

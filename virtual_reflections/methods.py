@@ -21,14 +21,20 @@ def _engine(**kwargs):
 
 
 METHODS = {
-    # the product's default: the edges extended into every unseen direction (left stays left)
+    # the product's default: the edges fade within 20 degrees into a fill by elevation and side
+    # (the plate's left half to the left, its right half to the right, both behind), as bright
+    # as the geometric mean of the log-average and the mean, its shared tint half kept
     "frustum": _engine(method="frustum"),
-    # the edges fade within 10 degrees into a log-average of the plate by elevation, widening
-    # toward the whole plate's beyond its top and bottom
-    "frustum, fill": _engine(method="frustum", extend_fade=10.0),
-    # the fill by elevation alone, never widening, and a longer fade
-    "frustum, sharp fill": _engine(method="frustum", extend_fade=20.0, fill_spread=0.0),
-    # one log-average of the whole plate instead of one per elevation
-    "frustum, flat fill": _engine(method="frustum", extend_fade=10.0, fill_width=90.0),
+    # the previous default: the edges extended into every unseen direction, no fill
+    "frustum, edges only": _engine(method="frustum", extend_fade=None),
+    # the previous fill: by elevation only (left and right mixed), a log-average (darker than
+    # the plate's light), fading within 10 degrees, widening toward the whole plate's
+    "frustum, fill by elevation": _engine(
+        method="frustum", extend_fade=10.0, fill_sides=False, fill_energy=0.0, fill_spread=1.0
+    ),
+    # that fill never widening, with a longer fade
+    "frustum, sharp fill": _engine(
+        method="frustum", extend_fade=20.0, fill_sides=False, fill_energy=0.0, fill_spread=0.0
+    ),
 }
 DEFAULT = "frustum"

@@ -28,16 +28,23 @@ class Params:
     extend_blur, extend_cap: the frustum method's blur outside the plate's view — pixels of
                blur per pixel of angular distance, and its cap as a share of the plate height.
     extend_fade: degrees from the plate's frustum over which the frustum method's edge
-               extension fades into the fill (a log-average of the plate by elevation; 10 is
-               the accuracy study's choice), or None (the default) to extend the edges into
-               every direction: the fill depends on elevation only, so it loses what is left
-               and right of the object, which the product promises to keep.
+               extension fades (a smoothstep in angle) into the fill, or None to extend the
+               edges into every unseen direction (the previous default). 20 (the default) is
+               the accuracy study's choice (docs/accuracy.md).
     fill_width: half-width in degrees of the elevation window the fill averages.
     fill_saturation: how much of the plate's colour the fill keeps (0: neutral grey of the
-               same luminance, 1: the plate's colour).
+               same luminance, 1: the plate's colour). With `fill_sides` it applies to the
+               tint both sides share; the difference between left and right is kept.
     fill_spread: how fast the fill's window widens beyond the plate's elevations (degrees of
                half-width per degree beyond), so far above or below the plate the fill tends
-               to the whole plate's log-average; 0 keeps the top or bottom band's.
+               to the whole plate's average; 0 keeps the top or bottom band's.
+    fill_sides: the fill depends on the side too: the plate's left half fills the left, its
+               right half the right, both the directions straight ahead (above and below the
+               plate) and straight behind; the two sides share the band's brightness, so only
+               their colour differs. False: by elevation only (left and right mixed).
+    fill_energy: how bright the fill is, 0..1: 0 the log-average (robust to a sun in view,
+               but darker than the light the plate holds), 1 the arithmetic mean's luminance
+               (the plate's energy), between their geometric blend (0.5, the default).
     intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
                aspect), for the frustum method; overrides hfov.
     """
@@ -50,10 +57,12 @@ class Params:
     extend_blur: float = 1.0
     extend_cap: float = 0.125
     intrinsics: tuple | None = None
-    extend_fade: float | None = None
+    extend_fade: float | None = 20.0
     fill_width: float = 2.0
     fill_saturation: float = 0.5
-    fill_spread: float = 1.0
+    fill_spread: float = 0.5
+    fill_sides: bool = True
+    fill_energy: float = 0.5
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -84,6 +93,10 @@ class Params:
             raise ValueError(f"fill_saturation must be 0..1, got {self.fill_saturation}")
         if not (math.isfinite(self.fill_spread) and 0.0 <= self.fill_spread <= 10.0):
             raise ValueError(f"fill_spread must be 0..10, got {self.fill_spread}")
+        if not isinstance(self.fill_sides, bool):
+            raise ValueError(f"fill_sides must be True or False, got {self.fill_sides!r}")
+        if not (math.isfinite(self.fill_energy) and 0.0 <= self.fill_energy <= 1.0):
+            raise ValueError(f"fill_energy must be 0..1, got {self.fill_energy}")
         if self.intrinsics is not None and (
             len(self.intrinsics) != 4
             or not all(math.isfinite(v) for v in self.intrinsics)

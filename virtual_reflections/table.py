@@ -12,13 +12,16 @@ face's centre in the continuous limit) each texel averages the area it covers.
 
 The frustum method (frustum.py) has three groups of texels, each with its own number of
 taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps), those near
-the plate's frustum (8 trilinear taps of the blurred edge extension, faded into 2 taps of the
-fill profile) and the rest (the 2 fill taps). The fill profile is computed per frame and
-stored after the pyramid, so it is one more block of rows the same gathers read.
+the plate's frustum (8 trilinear taps of the blurred edge extension, faded into the fill's
+taps) and the rest (the fill's taps only: 2, interpolating the profile by elevation, or 4 with
+`fill_sides`, the left and the right profile weighted by `frustum.side_weight`). The fill
+profiles are computed per frame and stored after the pyramid, so they are one more block of
+rows the same gathers read.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -68,6 +71,8 @@ class Fill:
     level: int
     base: int
     saturation: float
+    sides: int
+    energy: float
     bins: np.ndarray
     window: np.ndarray
     counts: np.ndarray
@@ -206,15 +211,32 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
     offsets = level_offsets(shapes, first)
     fill = None
     if filled:
+        sides = 2 if params.fill_sides else 1
         bins, window, counts = frustum.fill_geometry(
-            shapes[level_fill], level_fill, intrinsics, params.fill_width, params.fill_spread
+            shapes[level_fill],
+            level_fill,
+            intrinsics,
+            params.fill_width,
+            params.fill_spread,
+            sides,
         )
         base = int(level_offsets(shapes[:levels], first)[-1])
-        fill = Fill(level_fill, base, params.fill_saturation, bins, window, counts)
+        fill = Fill(
+            level_fill,
+            base,
+            params.fill_saturation,
+            sides,
+            params.fill_energy,
+            bins,
+            window,
+            counts,
+        )
+        side = frustum.side_weight(directions, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
     # Near the frustum: the blurred edge extension (8 trilinear taps) faded into the fill.
-    taps = 10 if filled else 8
+    fill_taps = 0 if not filled else 2 * fill.sides
+    taps = 8 + fill_taps
     near_index = np.empty((near.size, taps), np.int32)
     near_weight = np.empty((near.size, taps), np.float32)
     px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
@@ -228,7 +250,9 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
     for_blocks(trilinear, near.size)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
     if filled:
-        fill_index, fill_weight = frustum.fill_taps(directions[near], fill.base)
+        fill_index, fill_weight = frustum.fill_taps(
+            directions[near], fill.base, None if side is None else side[near]
+        )
         near_index[:, 8:] = fill_index
         near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
     groups = []
@@ -238,7 +262,12 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
         )
         groups.append((seen, seen_index, seen_weight))
     if far.size:
-        groups.append((far, *frustum.fill_taps(directions[far], fill.base)))
+        groups.append(
+            (
+                far,
+                *frustum.fill_taps(directions[far], fill.base, None if side is None else side[far]),
+            )
+        )
     for g in groups:
         _frozen(*g)
     _frozen(near, near_index, near_weight, position, lod)
@@ -310,6 +339,21 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
 def lookup_table(
     width: int, height: int, bbox: tuple, params: Params, layout: str = "latlong", size: int = 1024
 ) -> LookupTable:
-    """The cached table for a W x H plate, object `bbox` (x0, y0, x1, y1), params and layout."""
+    """The cached table for a W x H plate, object `bbox` (x0, y0, x1, y1), params and layout.
+
+    The frustum method's table depends on the camera, not on where the object is: one is
+    built per plate size, camera and layout and shared by every object and pose (each gets
+    its own segmentation, which only the paper's method and the add-on's advice read)."""
     seg = segment(width, height, bbox, params)
+    if params.method == "frustum":
+        return dataclasses.replace(
+            _camera_table(width, height, params, layout, size), segmentation=seg
+        )
     return build_table(seg, layout, size, params)
+
+
+@functools.lru_cache(maxsize=4)
+def _camera_table(width: int, height: int, params: Params, layout: str, size: int) -> LookupTable:
+    """The frustum method's table: it reads only the plate's size from the segmentation."""
+    centre = (width / 2 - 1, height / 2 - 1, width / 2 + 1, height / 2 + 1)
+    return build_table(segment(width, height, centre, params), layout, size, params)

@@ -96,6 +96,7 @@ def start():
             plate = root + "/sample_scenes/plates/courtyard.jpg"
             settings.plate_image = bpy.data.images.load(plate)
             settings.resolution = "512"
+            settings.method = "PAPER"  # maps that depend on where the object is: moves show
             result["generate"] = sorted(bpy.ops.vr.generate("EXEC_DEFAULT", True))
             size, buf = pixels()
             result["maps"].append([list(size), float(buf.sum())])

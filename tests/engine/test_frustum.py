@@ -72,7 +72,6 @@ def test_shifted_lens_and_non_square_pixels():
 
 
 def _map(plate, hfov=60.0, width=256, **kw):
-    kw.setdefault("extend_fade", 10.0)  # the fill (not the default)
     return environment_map(
         plate.astype(np.float32),
         (0, 0, 1, 1),
@@ -104,22 +103,28 @@ def test_seen_texels_average_their_footprint():
 
 
 def test_unseen_directions_fade_into_a_robust_average_by_elevation():
-    """Bright sky above, dark ground below: above the plate the map is bright, below dark; far
-    away both tend to the plate's log-average (not its mean: a small sun in view must not light
-    half the sphere)."""
+    """Bright sky above, dark ground below: above the plate the map is bright, below dark;
+    behind, at the horizon's elevation, near the plate's log-average and far below its mean (a
+    small sun in view must not light half the sphere). `fill_energy` brightens the log-average
+    toward the mean: 0 is the log-average, 1 the mean's luminance, the default between."""
     w, h = 320, 180
     plate = np.full((h, w, 3), 0.05, np.float32)
     plate[: h // 2] = 0.8
     plate[10:14, 150:154] = 5000.0  # a small, very bright sun
-    env = _map(plate, width=256)
     half_v = math.atan(math.tan(math.radians(30)) * h / w)
-    above = env[_texel([0, math.tan(half_v + 0.35), 1], 256)]
-    below = env[_texel([0, -math.tan(half_v + 0.35), 1], 256)]
-    behind = env[_texel([0, 0, -1], 256)]
-    assert above.mean() > 2.0 * below.mean()
+    up, down = (
+        _texel([0, math.tan(half_v + 0.35), 1], 256),
+        _texel([0, -math.tan(half_v + 0.35), 1], 256),
+    )
+    behind = _texel([0, 0, -1], 256)
+    env = _map(plate, width=256)
+    assert env[up].mean() > 2.0 * env[down].mean()
     log_average = math.exp(0.5 * math.log(0.8) + 0.5 * math.log(0.05))
-    assert 0.5 * log_average < behind.mean() < 2.0 * log_average
-    assert plate.mean() > 10 * behind.mean()
+    assert 0.5 * log_average < env[behind].mean() < 2.0 * log_average
+    assert plate.mean() > 5 * env[behind].mean()
+    above = [_map(plate, width=256, fill_energy=e)[up].mean() for e in (0.0, 0.5, 1.0)]
+    assert above[0] < above[1] < above[2]
+    assert above[1] == pytest.approx(math.sqrt(above[0] * above[2]), rel=0.2)
 
 
 def test_fill_and_fade_do_not_depend_on_the_map_width():
@@ -149,18 +154,30 @@ def test_fill_colour_and_the_old_extension():
 
 
 def test_the_default_keeps_left_on_the_left():
-    """The default extends the edges into every direction (no fill): a plate whose left half is
-    red is red everywhere to the left, behind the camera too, as the add-on promises. The
-    fill, which depends on elevation only, would make it purple."""
+    """A plate whose left half is red is red to the left, behind-left too, as the add-on
+    promises: the default's fill depends on the side (the difference between the sides keeps
+    its colour); straight behind, both halves blend. The previous default (no fill) is red
+    everywhere to the left; the fill by elevation only mixes the two halves."""
     plate = np.zeros((90, 160, 3), np.float32)
     plate[:, :80] = [1.0, 0.0, 0.0]  # the plate's left half red: +X
     plate[:, 80:] = [0.0, 0.0, 1.0]
     default = environment_map(plate, (0, 0, 1, 1), Params(method="frustum", hfov=60.0))
     for direction in ([1, 0, 0], [1, 0.5, -0.5], [1, -0.3, -1]):
         left = default[_texel(direction, 1024)]
+        right = default[_texel([-direction[0], *direction[1:]], 1024)]
+        assert left[0] > 0.6 and left[0] > 5 * left[2], direction
+        assert right[2] > 0.6 and right[2] > 5 * right[0], direction
+    back = default[_texel([0, 0, -1], 1024)]
+    assert back[0] == pytest.approx(back[2], rel=0.05)
+    edges = environment_map(
+        plate, (0, 0, 1, 1), Params(method="frustum", hfov=60.0, extend_fade=None)
+    )
+    for direction in ([1, 0, 0], [1, 0.5, -0.5], [1, -0.3, -1]):
+        left = edges[_texel(direction, 1024)]
         assert left[0] > 0.9 and left[2] < 0.1, direction
-    filled = _map(plate, width=128)[_texel([1, 0, 0], 128)]
-    assert filled[0] < 0.5  # the fill mixes the two halves (per channel, in logs: dark)
+    by_elevation = _map(plate, width=128, extend_fade=10.0, fill_sides=False)
+    mixed = by_elevation[_texel([1, 0, 0], 128)]
+    assert mixed[0] == pytest.approx(mixed[2], rel=0.05)  # the two halves mixed
 
 
 def test_frustum_cube_map_is_finite_and_places_the_plate():
@@ -181,6 +198,24 @@ def test_new_params_are_validated():
         {"fill_width": 0.0},
         {"fill_saturation": 2.0},
         {"fill_spread": float("nan")},
+        {"fill_energy": 1.5},
+        {"fill_sides": 1},
     ):
         with pytest.raises(ValueError):
             Params(method="frustum", hfov=60.0, **bad)
+
+
+def test_one_camera_table_serves_every_object_position():
+    """The camera-view table depends on the camera only: a moved object reuses its taps (no
+    rebuild) but keeps its own segmentation for the advice the add-on gives."""
+    from virtual_reflections.table import lookup_table
+
+    params = Params(method="frustum", hfov=55.0)
+    a = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), params, "latlong", 64)
+    b = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), params, "latlong", 64)
+    assert a.index is b.index and a.weight is b.weight
+    assert a.segmentation != b.segmentation
+    paper = Params()
+    c = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), paper, "latlong", 64)
+    d = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), paper, "latlong", 64)
+    assert c.index is not d.index

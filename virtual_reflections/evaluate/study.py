@@ -42,6 +42,7 @@ import numpy as np
 
 from .. import panorama
 from ..colour import decode_uint, linear_to_srgb
+from ..mapsize import auto_map_width
 from . import metrics as M
 from . import spheres as S
 from .baselines import Method, all_methods
@@ -490,21 +491,6 @@ AUTO_WIDTHS = (64, 128, 256, 512, 1024, 2048)
 TRUTH_WIDTH_AUTO = 2048  # the HDRIs are 1024 wide: 2048 holds all their detail
 
 
-def auto_map_width(object_px: float, minimum: int = 256, maximum: int = 1024) -> int:
-    """The lat-long width a curved object of `object_px` pixels on screen needs.
-
-    A mirror sphere of diameter D pixels turns its reflection by 4 / D radians per pixel at its
-    centre (twice the normal's turn), more toward the rim; a W-wide lat-long has 2 pi / W radians
-    per texel. Two texels per pixel at the centre (bilinear lookups, a renderer's many samples)
-    gives W = pi D; rounded up to a power of two, clamped to [minimum, maximum]. The clamp is
-    measured (`run_auto_study`): below 256 even a tiny sphere's render changes visibly (a 4 x 4
-    supersampled pixel integrates more than its centre's footprint), above 1024 nothing changes
-    that the study can see.
-    """
-    want = max(float(object_px), 1.0) * math.pi
-    return int(min(max(2 ** math.ceil(math.log2(want)), minimum), maximum))
-
-
 def _median_ms(fn, repeat=3):
     times = []
     for _ in range(repeat):
@@ -883,13 +869,16 @@ def _claim_stretch_below_mean(results):
     )
 
 
-def _claim_fill_beats_all_on_diffuse(results):
-    """On the float plates, the frustum method with the fill (engine frustum, fill) beats every
-    baseline and the paper's method on mean diffuse-sphere si-RMSE."""
-    s = summarise(results, "exr/hdr")
-    fill = "engine frustum, fill"
-    others = _family(results, "baseline") + _family(results, "paper")
-    return fill in s and all(s[fill]["diffuse_si_rmse"] < s[o]["diffuse_si_rmse"] for o in others)
+def _claim_default_beats_all(results):
+    """On the float plates, the default beats every baseline and the paper's method on mean
+    mirror-sphere PSNR, mirror-sphere SSIM and diffuse-sphere si-RMSE."""
+    s, d = summarise(results, "exr/hdr"), results.default
+    return all(
+        s[d]["mirror_psnr"] > s[o]["mirror_psnr"]
+        and s[d]["mirror_ssim"] > s[o]["mirror_ssim"]
+        and s[d]["diffuse_si_rmse"] < s[o]["diffuse_si_rmse"]
+        for o in _family(results, "baseline") + _family(results, "paper")
+    )
 
 
 def _claim_default_reaches_40db(results):
@@ -911,7 +900,7 @@ def _claim_exact_placement_reachable(results):
 
 
 CLAIMS = (
-    _claim_fill_beats_all_on_diffuse,
+    _claim_default_beats_all,
     _claim_default_beats_paper,
     _claim_default_places_plate,
     _claim_default_reaches_40db,
