@@ -32,13 +32,14 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from generate_bench import load_addon, scene_with_object  # noqa: E402
 
 
-def build_scene(generate):
+def build_scene(generate, method="CAMERA"):
     """generate_bench's shot (a 100k-vertex sphere, a 1080p plate, 1024-wide map) plus an
     unrelated cube, its map generated and Live Update on."""
     scene, obj = scene_with_object()
     bpy.ops.mesh.primitive_cube_add(location=(4.0, 2.0, 0.0))
     other = bpy.context.active_object
     settings = scene.virtual_reflections
+    settings.method = method
     settings.combine = "REPLACE"
     report = generate.generate(bpy.context, [obj])
     assert report.done, report.warnings
@@ -76,17 +77,18 @@ def stages(reports):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--steps", type=int, default=90)
+    parser.add_argument("--method", choices=("CAMERA", "PAPER"), default="CAMERA")
     args = parser.parse_args()
     addon = load_addon()
     try:
         generate = sys.modules[addon.__name__ + ".operators.generate"]
         live = sys.modules[addon.__name__ + ".operators.live"]
-        scene, obj, other = build_scene(generate)
+        scene, obj, other = build_scene(generate, args.method)
         print(
             f"Blender {bpy.app.version_string}, Python {platform.python_version()}, "
             f"NumPy {np.__version__}, {os.cpu_count()} cores; sphere {len(obj.data.vertices)} "
             f"vertices; plate 1920x1080 8-bit; map 1024x512, moving {live.PREVIEW_WIDTH}x"
-            f"{live.PREVIEW_WIDTH // 2}"
+            f"{live.PREVIEW_WIDTH // 2}; method {args.method}"
         )
         drag(live, obj, 10, full=False, start=1000)  # warm up: reduced plate, pyramids, caches
         times, reports = drag(live, obj, args.steps, full=False)
