@@ -111,7 +111,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
         else:
             layout.label(text="No plate to show", icon="ERROR")
         if getattr(scene.virtual_reflections, "method", "PAPER") != "PAPER":
-            layout.label(text="Regions: the paper's (Camera View does not use them)")
+            layout.label(text="Regions: the paper's, for reference", icon="INFO")
         for line in shown["advice"]:
             col = layout.column(align=True)
             col.alert = True
