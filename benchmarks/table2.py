@@ -105,6 +105,7 @@ def build_scene(build_scenes, scale, samples):
     settings = scene.virtual_reflections
     settings.plate_image = image
     settings.combine = "REPLACE"
+    settings.method = "PAPER"  # the paper's Table 2, and neighbours on the facing sides
     settings.front = "TRIANGLES"
     return scene, [sphere, torus]
 
