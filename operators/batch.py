@@ -71,7 +71,8 @@ def load_plate(path):
     return image
 
 
-def _read_rgba(path):
+def read_rgba(path):
+    """(H, W, 4) float32 pixels of an image file, top row first (Blender stores bottom-up)."""
     image = bpy.data.images.load(path, check_existing=False)
     try:
         w, h = image.size
@@ -192,7 +193,7 @@ def render_shot(args, started):
     print(f"[{stamp()}] rendered {render_path} in {time.perf_counter() - t:.2f} s")
 
     t = time.perf_counter()
-    rgba = _read_rgba(render_path)
+    rgba = read_rgba(render_path)
     plate, _ = generate.plate_pixels(scene, image)
     comp = compositor.composite_over_plate(rgba, _fit(plate, rgba.shape))
     _save_composite(scene, comp, args.out, name, stamp, t)
@@ -601,7 +602,7 @@ def _render_frame(scene, ctx, source, frame, path, fmt, objects, filters, step, 
             bpy.ops.render.render(write_still=True, scene=scene.name)
             timed("render", t)
             t = time.perf_counter()
-            rgba = _read_rgba(render_path)
+            rgba = read_rgba(render_path)
         finally:
             if os.path.exists(render_path):
                 os.remove(render_path)

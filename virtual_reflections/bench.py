@@ -32,7 +32,8 @@ def _plate() -> np.ndarray:
     return (base + 0.1 * rng.random((PLATE_H, PLATE_W, 3), dtype=np.float32)).astype(np.float32)
 
 
-def _median_ms(fn, repeat: int) -> float:
+def median_ms(fn, repeat: int = 3) -> float:
+    """The median wall time of `repeat` calls of `fn`, in milliseconds."""
     times = []
     for _ in range(repeat):
         t = time.perf_counter()
@@ -68,12 +69,12 @@ def run_sweep(path: str, repeat: int = 7) -> dict:
         cube = apply_table(build_table(seg, "cube", face), plate)
         faces = [cube[i * face : (i + 1) * face] for i in range(6)]
         table = build_table(seg, "latlong", width)
-        rows["build"].append(_median_ms(lambda t=width: build_table(seg, "latlong", t), 3))
-        rows["apply"].append(_median_ms(lambda t=table: apply_table(t, plate), repeat))
+        rows["build"].append(median_ms(lambda t=width: build_table(seg, "latlong", t), 3))
+        rows["apply"].append(median_ms(lambda t=table: apply_table(t, plate), repeat))
         if p360 is not None:
             p360.c2e(faces, width // 2, width, cube_format="list")
             rows["peer"].append(
-                _median_ms(
+                median_ms(
                     lambda f=faces, w=width: p360.c2e(f, w // 2, w, cube_format="list"), repeat
                 )
             )
@@ -109,7 +110,7 @@ def run_bench(repeat: int = 15) -> dict:
     tables = {}
     for layout, size in (("latlong", 1024), ("cube", 512)):
         tables[layout] = build_table(seg, layout, size)
-        figures[f"build {layout}"] = _median_ms(
+        figures[f"build {layout}"] = median_ms(
             lambda layout=layout, size=size: build_table(seg, layout, size), max(3, repeat // 3)
         )
     faces_strip = apply_table(tables["cube"], plate)
@@ -129,7 +130,7 @@ def run_bench(repeat: int = 15) -> dict:
             p360.c2e(faces, 512, 1024, cube_format="list")
             peer.append(time.perf_counter() - t)
     figures["apply latlong"] = 1000.0 * float(np.median(ours))
-    figures["apply cube"] = _median_ms(lambda: apply_table(tables["cube"], plate), repeat)
+    figures["apply cube"] = median_ms(lambda: apply_table(tables["cube"], plate), repeat)
     if peer:
         figures["peer c2e"] = 1000.0 * float(np.median(peer))
         figures["ratio"] = figures["apply latlong"] / figures["peer c2e"]

@@ -98,18 +98,21 @@ def sample_equirect(image, directions_world):
     image = np.asarray(image, dtype=np.float32)
     height, width = image.shape[:2]
     xy = blender_equirect_lookup(directions_world, width, height)
-    x = xy[..., 0] - 0.5  # in pixel-index units: pixel i is centred on x == i
-    y = xy[..., 1] - 0.5
+    return bilinear_wrap(image, xy[..., 0] - 0.5, xy[..., 1] - 0.5)
+
+
+def bilinear_wrap(image, x, y):
+    """Bilinear samples `(..., C)` float32 of an `(H, W, C)` lat-long at pixel-index coordinates
+    (pixel i centred on i): columns wrap (the seam is continuous), rows clamp at the poles."""
+    height, width = image.shape[:2]
     x0 = np.floor(x)
     y0 = np.floor(y)
     fx = (x - x0).astype(np.float32)[..., None]
     fy = (y - y0).astype(np.float32)[..., None]
     x0 = x0.astype(np.int64)
     y0 = y0.astype(np.int64)
-    xa = np.mod(x0, width)
-    xb = np.mod(x0 + 1, width)
-    ya = np.clip(y0, 0, height - 1)
-    yb = np.clip(y0 + 1, 0, height - 1)
+    xa, xb = np.mod(x0, width), np.mod(x0 + 1, width)
+    ya, yb = np.clip(y0, 0, height - 1), np.clip(y0 + 1, 0, height - 1)
     top = image[ya, xa] * (1.0 - fx) + image[ya, xb] * fx
     bottom = image[yb, xa] * (1.0 - fx) + image[yb, xb] * fx
     return (top * (1.0 - fy) + bottom * fy).astype(np.float32)

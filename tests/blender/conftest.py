@@ -4,29 +4,11 @@ The extension is loaded the way Blender loads an extension: as a package whose
 directory is the repository root, so its relative imports and `__package__` work.
 """
 
-import importlib.util
-import pathlib
-import sys
-
 import pytest
 
 bpy = pytest.importorskip("bpy", reason="the bpy module is not installed in this environment")
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-PACKAGE = "vr_addon_under_test"
-
-
-def load_addon():
-    """Import the repository as an extension package (once per process)."""
-    if PACKAGE in sys.modules:
-        return sys.modules[PACKAGE]
-    spec = importlib.util.spec_from_file_location(
-        PACKAGE, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)]
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[PACKAGE] = module
-    spec.loader.exec_module(module)
-    return module
+from shots import load_addon  # noqa: E402  (after the bpy check)
 
 
 @pytest.fixture

@@ -4,7 +4,7 @@ import pathlib
 
 import bpy
 import numpy as np
-from shots import add_camera
+from shots import add_camera, addon_part
 
 COLOURS = ((1.0, 0.1, 0.1), (0.1, 1.0, 0.1), (0.1, 0.1, 1.0))  # frames 1, 2, 3
 SIZE = (64, 32)
@@ -99,12 +99,5 @@ def mean_rgb(image):
 
 
 def read(path):
-    """(H, W, 4) float32 pixels of an image file, top row first."""
-    image = bpy.data.images.load(str(path), check_existing=False)
-    try:
-        w, h = image.size
-        buf = np.empty(w * h * 4, np.float32)
-        image.pixels.foreach_get(buf)
-    finally:
-        bpy.data.images.remove(image)
-    return buf.reshape(h, w, 4)[::-1]
+    """(H, W, 4) float32 pixels of an image file, top row first (the batch entry's reader)."""
+    return addon_part("operators.batch").read_rgba(str(path))

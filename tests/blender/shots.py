@@ -1,17 +1,35 @@
 """Small scenes the bpy tests share: a camera on -Y looking along +Y (Z up), and plates."""
 
+import importlib.util
 import math
+import pathlib
 import sys
 
 import bpy
 import numpy as np
 
-PACKAGE = "vr_addon_under_test"  # conftest.load_addon's name for the repository
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+PACKAGE = "vr_addon_under_test"  # the repository, imported as an extension package
+
+
+def load_addon():
+    """Import the repository as an extension package (once per process), the way Blender loads
+    an extension: its relative imports and `__package__` work."""
+    if PACKAGE in sys.modules:
+        return sys.modules[PACKAGE]
+    spec = importlib.util.spec_from_file_location(
+        PACKAGE, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)]
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[PACKAGE] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def addon_part(name):
-    """A submodule of the loaded add-on, e.g. ``addon_part("operators.generate")``."""
-    return sys.modules[f"{PACKAGE}.{name}"]
+    """A submodule of the add-on, e.g. ``addon_part("operators.generate")`` (imported if needed)."""
+    load_addon()
+    return importlib.import_module(f"{PACKAGE}.{name}")
 
 
 def add_camera(scene=None, distance=6.0, size=None):

@@ -5,9 +5,8 @@ import subprocess
 import sys
 
 import bpy
-import numpy as np
 import pytest
-from shots import add_camera
+from shots import add_camera, addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PLATE = ROOT / "sample_scenes/plates/courtyard.jpg"
@@ -37,12 +36,7 @@ def run(*args):
 
 
 def read(path):
-    image = bpy.data.images.load(str(path))
-    w, h = image.size
-    buf = np.empty(w * h * 4, np.float32)
-    image.pixels.foreach_get(buf)
-    bpy.data.images.remove(image)
-    return buf.reshape(h, w, 4)[::-1]
+    return addon_part("operators.batch").read_rgba(str(path))
 
 
 def test_render_shot_writes_render_and_composite(shot, tmp_path):
@@ -85,11 +79,11 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
     render_shot = importlib.import_module("render_shot")
     settings = bpy.context.scene.virtual_reflections
     base = ["--plate", str(PLATE), "--out", str(tmp_path)]
-    for given, expected in (("paper", "PAPER"), ("camera", "CAMERA")):
+    for given, expected in (("camera", "CAMERA"), ("paper", "PAPER")):
         batch._configure(bpy.context.scene, render_shot.parse([*base, "--method", given]))
         assert settings.method == expected
     batch._configure(bpy.context.scene, render_shot.parse(base))
-    assert settings.method == "CAMERA"
+    assert settings.method == "PAPER"  # kept, not reset to the default (Camera View)
     with pytest.raises(SystemExit) as bad:
         render_shot.parse([*base, "--method", "nope"])
     assert bad.value.code == 2

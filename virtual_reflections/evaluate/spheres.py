@@ -30,6 +30,8 @@ import math
 
 import numpy as np
 
+from ..panorama import bilinear_wrap
+
 SPHERE_SIZE = 128
 GLOSSY_EXPONENT = 32.0  # Phong lobe cos^32 (about 10 deg wide): GGX roughness ~0.5, "matte silver"
 PREFILTER_WIDTH = 128  # lat-long grid (128 x 64, 2.8 deg) on which lobes are convolved;
@@ -78,17 +80,7 @@ def sample_latlong(latlong: np.ndarray, directions: np.ndarray) -> np.ndarray:
     lon = np.arctan2(d[..., 0], d[..., 2])
     x = (0.5 - lon / (2.0 * math.pi)) * width - 0.5  # texel-index units: texel i centred on i
     y = (0.5 - lat / math.pi) * height - 0.5
-    x0 = np.floor(x)
-    y0 = np.floor(y)
-    fx = (x - x0).astype(np.float32)[..., None]
-    fy = (y - y0).astype(np.float32)[..., None]
-    x0 = x0.astype(np.int64)
-    y0 = y0.astype(np.int64)
-    xa, xb = np.mod(x0, width), np.mod(x0 + 1, width)
-    ya, yb = np.clip(y0, 0, height - 1), np.clip(y0 + 1, 0, height - 1)
-    top = latlong[ya, xa] * (1.0 - fx) + latlong[ya, xb] * fx
-    bottom = latlong[yb, xa] * (1.0 - fx) + latlong[yb, xb] * fx
-    return top * (1.0 - fy) + bottom * fy
+    return bilinear_wrap(latlong, x, y)
 
 
 def resample_latlong(latlong: np.ndarray, width: int) -> np.ndarray:

@@ -41,6 +41,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from .. import panorama
+from ..bench import median_ms
 from ..colour import decode_uint, linear_to_srgb
 from ..mapsize import auto_map_width
 from . import metrics as M
@@ -491,15 +492,6 @@ AUTO_WIDTHS = (64, 128, 256, 512, 1024, 2048)
 TRUTH_WIDTH_AUTO = 2048  # the HDRIs are 1024 wide: 2048 holds all their detail
 
 
-def _median_ms(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return 1000.0 * float(np.median(times))
-
-
 def run_auto_study(config: Config, method: Method, log=None) -> dict:
     """Item 6 of the issue, for the product's default `method`, float plates, HDR truth.
 
@@ -588,12 +580,12 @@ def run_auto_study(config: Config, method: Method, log=None) -> dict:
     small = method.fn(plate, bbox, hfov, 128)
     tiny = method.fn(plate, bbox, hfov, 32)
     filter_cost = {
-        "glossy full map": _median_ms(lambda: S.prefilter(full, S.GLOSSY_EXPONENT)),
-        "glossy prefiltered 128": _median_ms(lambda: S.prefilter(small, S.GLOSSY_EXPONENT, 128)),
-        "diffuse full map": _median_ms(lambda: S.prefilter(full, 1.0)),
-        "diffuse SH9 full map": _median_ms(lambda: S.sh9_coefficients(full)),
-        "diffuse SH9 128": _median_ms(lambda: S.sh9_coefficients(small)),
-        "diffuse SH9 32": _median_ms(lambda: S.sh9_coefficients(tiny)),
+        "glossy full map": median_ms(lambda: S.prefilter(full, S.GLOSSY_EXPONENT)),
+        "glossy prefiltered 128": median_ms(lambda: S.prefilter(small, S.GLOSSY_EXPONENT, 128)),
+        "diffuse full map": median_ms(lambda: S.prefilter(full, 1.0)),
+        "diffuse SH9 full map": median_ms(lambda: S.sh9_coefficients(full)),
+        "diffuse SH9 128": median_ms(lambda: S.sh9_coefficients(small)),
+        "diffuse SH9 32": median_ms(lambda: S.sh9_coefficients(tiny)),
     }
     map_width_of = {
         "glossy full map": config.map_width,
