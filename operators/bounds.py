@@ -1,6 +1,6 @@
 """Where an object lands on the plate: its screen-space bounding box in plate pixels.
 
-Plate pixels (CONVENTIONS.md, "Plate pixels"): origin at the top-left of the rendered frame,
+Plate pixels (docs/conventions.md, "Plate pixels"): origin at the top-left of the rendered frame,
 x to the right, y **down**; pixel ``(px, py)`` covers ``[px, px + 1) x [py, py + 1)``, its centre
 at ``+ 0.5``. A box ``(x0, y0, x1, y1)`` covers ``[x0, x1) x [y0, y1)`` (x1/y1 exclusive); the
 pixels it touches are ``range(floor(x0), ceil(x1)) x range(floor(y0), ceil(y1))``. Boxes may reach

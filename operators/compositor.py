@@ -7,7 +7,7 @@ Colour: every array here is scene-linear Rec.709 float32 unless it says otherwis
 them), so they are decoded with the sRGB EOTF; a float image's ``pixels`` (EXR, HDR, and 16-bit
 PNG/TIFF, which Blender loads into a float buffer) are already converted to the scene-linear
 working space on load. Pixel rows: Blender stores them bottom-up; arrays here are top row first
-(CONVENTIONS.md, "Plate pixels").
+(docs/conventions.md, "Plate pixels").
 
 The compositor API changed in Blender 5.0, and `setup_from_plate` handles both:
 

@@ -1,7 +1,7 @@
 """Generate and remove virtual reflections: the artist's two buttons, and the same as functions
 for scripts and the headless batch entry.
 
-Per frame the data flows one way (STYLE.md): plate pixels (linear) -> each object's screen
+Per frame the data flows one way (docs/architecture.md): plate pixels (linear) -> each object's screen
 bounds (bounds.py) -> the engine's cached table and one gather (virtual_reflections) -> a map
 image (maps.py) -> a node group on object-level material copies, or a world (shading.py).
 """

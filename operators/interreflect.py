@@ -24,7 +24,7 @@ r = 2 the objects in each other, r = 3 those reflections again, and so on. Here,
   (`maps.store_map`) and the material copies are rewired, not multiplied (`shading.attach`
   first takes off what it attached before).
 
-Frames and sizes: plate pixels (CONVENTIONS.md: origin top-left, y down). The plate has its own
+Frames and sizes: plate pixels (docs/conventions.md: origin top-left, y down). The plate has its own
 size (H, W); the render has the scene's (h, w), after the resolution percentage. Maps are
 always built at the plate's size, as Generate builds them -- the render is scaled up (nearest)
 and put over the full plate -- so later passes keep the plate's detail; the composites this

@@ -1,7 +1,7 @@
 """Live update: a reflective object's map follows it while the artist moves, turns or scales it
 or edits its mesh (``scene.virtual_reflections.live_update``).
 
-Per change the data flows one way (STYLE.md):
+Per change the data flows one way (docs/architecture.md):
 
     depsgraph_update_post  which reflective objects changed? (a set lookup per update; other
                            objects, images and selection changes are ignored)

@@ -1,7 +1,7 @@
 """Put an environment map on objects and the world, and take it off again (paper §3.1).
 
 The map is a float32 scene-linear Blender image in the product's lat-long convention in the
-CAMERA frame (CONVENTIONS.md): +Z the viewing direction, +Y up, +X the plate's LEFT; pixel
+CAMERA frame (docs/conventions.md): +Z the viewing direction, +Y up, +X the plate's LEFT; pixel
 centre (x + .5, y + .5) of W x H (top row first) looks along
 lon = -2π((x + .5)/W - .5), lat = -π((y + .5)/H - .5),
 d = (sin lon cos lat, sin lat, cos lon cos lat).
@@ -74,7 +74,7 @@ def ensure_latlong_group():
     g_in = _node(nodes, "NodeGroupInput", "Group Input", (-800, 0))
     g_out = _node(nodes, "NodeGroupOutput", "Group Output", (700, 0))
 
-    # Product camera frame: +X is the plate's left, so flip x (CONVENTIONS.md).
+    # Product camera frame: +X is the plate's left, so flip x (docs/conventions.md).
     flip = _node(nodes, "ShaderNodeVectorMath", "To Product Frame", (-600, 0))
     flip.operation = "MULTIPLY"
     flip.inputs[1].default_value = (-1.0, 1.0, 1.0)

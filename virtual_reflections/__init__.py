@@ -1,7 +1,7 @@
 """Virtual Reflections engine: the environment map of Ropinski, Wachenfeld & Hinrichs (2004)
 built from a plate and an object's screen-space bounds. NumPy and OpenImageIO, never bpy.
 
-Frames (CONVENTIONS.md): plate pixels origin top-left, y down; directions in the camera
+Frames (docs/conventions.md): plate pixels origin top-left, y down; directions in the camera
 frame, +Z the viewing direction, +Y up, +X the plate's left; lat-long and cube layouts as
 OpenEXR's ImfEnvmap. Colour: scene-linear Rec.709 throughout.
 """

@@ -2,7 +2,7 @@
 
 The paper (§3.1) ignores the camera: it stretches region X over the whole back face, so what
 lies behind the object lands roughly, not where it really is. With the horizontal field of
-view the plate is a pinhole image (CONVENTIONS.md):
+view the plate is a pinhole image (docs/conventions.md):
 
     f = (W / 2) / tan(hfov / 2);  direction d (z > 0) is seen at
     px = W/2 - f d.x / d.z,  py = H/2 - f d.y / d.z      (continuous plate coordinates)

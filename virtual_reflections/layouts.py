@@ -7,7 +7,7 @@ Lat-long (OpenEXR envmap LATLONG, ImfEnvmap's LatLongMap), W x H with W = 2H, to
   So the centre column looks along +Z (the plate's centre), the left half holds +X (the
   plate's left): the plate appears upright and unmirrored around the map's centre, and the
   left/right edges look back toward the camera. (ImfEnvmap scales by W-1 and H-1 so its
-  first and last columns sit on the seam; we use pixel centres, as CONVENTIONS.md says.)
+  first and last columns sit on the seam; we use pixel centres, as docs/conventions.md says.)
 
 Cube (OpenEXR envmap CUBE, ImfEnvmap's CubeMap), a vertical strip of six S x S faces, top to
 bottom +X, -X, +Y, -Y, +Z, -Z, each oriented as CubeMap::pixelPosition defines. Within a face,

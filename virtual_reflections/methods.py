@@ -1,7 +1,7 @@
 """Named ways to make a lat-long environment map from a plate, for comparisons.
 
 METHODS maps a name to `fn(plate_linear (H, W, 3), bbox, hfov_deg, width) -> (width/2, width, 3)`
-float32 lat-long in the camera frame (CONVENTIONS.md). The accuracy study
+float32 lat-long in the camera frame (docs/conventions.md). The accuracy study
 (`python -m virtual_reflections evaluate`) charts them against each other; "frustum" (the
 add-on's Camera View, with Params' defaults) is the product's default.
 """

@@ -3,7 +3,7 @@
 Pure NumPy + OpenImageIO (never `bpy`): the sample plates, their ground-truth surroundings and
 the tests are all built from Blender's bundled world HDRIs with these functions.
 
-Frames (see CONVENTIONS.md):
+Frames (see docs/conventions.md):
 
 - **Blender world**: right-handed, +Z up. Blender's Environment Texture (equirectangular) maps a
   world direction `d` as Cycles' `direction_to_equirectangular` does
@@ -287,7 +287,7 @@ def ground_truth_latlong(equirect, rotation, width, supersample=2):
     equirect: `(H, W, 3)` float32 scene-linear Blender-convention world lat-long.
     rotation: `(3, 3)` world rotation of the Blender camera (`camera_rotation`).
     width: W of the output (even); its height is W / 2.
-    The output is in the camera frame's lat-long convention (CONVENTIONS.md, `layouts.py`):
+    The output is in the camera frame's lat-long convention (docs/conventions.md, `layouts.py`):
     `lat = -pi ((y + 0.5) / H - 0.5)`, `lon = -2pi ((x + 0.5) / W - 0.5)`, direction
     `(sin(lon) cos(lat), sin(lat), cos(lon) cos(lat))`. Its centre column is the camera's
     viewing direction, so the plate appears upright and unmirrored around the centre.

@@ -1,6 +1,6 @@
 """The paper's cube (§3.1): where on the plate each direction of the environment looks.
 
-Directions are in the camera frame (CONVENTIONS.md): +Z is the viewing direction (the
+Directions are in the camera frame (docs/conventions.md): +Z is the viewing direction (the
 plate's centre), +Y is up on the plate, +X is the plate's *left* (-X its right).
 
 Every direction is first put on the unit cube around the object:

@@ -192,7 +192,7 @@ def test_sphere_render_without_and_with(addon, render_sample, tmp_path):
 
 def test_sphere_shows_the_plates_left_on_its_left(addon, render_sample, tmp_path):
     """A plate red on its left half and blue on its right (with the courtyard camera): the
-    chrome sphere in the middle is red on its left, blue on its right (CONVENTIONS.md)."""
+    chrome sphere in the middle is red on its left, blue on its right (docs/conventions.md)."""
     oiio = pytest.importorskip("OpenImageIO")
     plate = np.zeros((720, 1280, 3), np.float32)
     plate[:, :640, 0] = plate[:, 640:, 2] = 0.5

@@ -1,6 +1,6 @@
 """operators/shading.py: the camera-frame lat-long lookup, material modes, world, detach.
 
-Pictures with known answers (CONVENTIONS.md): a chrome sphere with a map whose left half (the
+Pictures with known answers (docs/conventions.md): a chrome sphere with a map whose left half (the
 plate's left) is red must be red on its left side in the render, also after the camera moves.
 Renders are Cycles on the CPU, tiny and without denoising (the denoiser perturbs flat colours);
 one EEVEE render is marked slow (software GL here). Every render is read back from a 32-bit
@@ -173,7 +173,7 @@ def assert_left_red_right_blue(scene, sphere, pixels, size, radius=None):
 
 def test_lookup_group_matches_the_lat_long_convention(shading, clean_file, tmp_path):
     """Render the group's UV output for known camera-frame directions (tiny emissive planes
-    parented to a tilted, rolled camera) and compare with CONVENTIONS.md's formula."""
+    parented to a tilted, rolled camera) and compare with docs/conventions.md's formula."""
     scene = clean_file.scene
     cam = add_camera(scene, location=(1.0, -3.0, 2.0), look_at=(0.2, 0.5, -0.3), roll=0.4)
     group = shading.ensure_lookup_group()

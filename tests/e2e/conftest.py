@@ -1,5 +1,6 @@
 """A real Blender binary for end-to-end tests: $VR_BLENDER (a command), `blender` on PATH, or
-the project's Debian chroot tool (../shared/tools/blender-chroot) once set up. Tests skip
+the project's Debian chroot tool ($VR_BLENDER_CHROOT, or shared/tools/blender-chroot one or
+two folders above the checkout) once set up. Tests skip
 with the reason when none is found."""
 
 import os
@@ -11,9 +12,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+# The chroot tool, found relative to the checkout (or named by $VR_BLENDER_CHROOT).
 CHROOT_TOOLS = [
+    *([Path(os.environ["VR_BLENDER_CHROOT"])] if os.environ.get("VR_BLENDER_CHROOT") else []),
     ROOT.parent / "shared/tools/blender-chroot",
-    Path("/work/shared/tools/blender-chroot"),
+    ROOT.parent.parent / "shared/tools/blender-chroot",
 ]
 
 

@@ -12,7 +12,7 @@ from virtual_reflections.panorama import camera_frame_directions
 
 def test_pixel_directions_land_on_their_pixels():
     w, h, hfov = 160, 90, 60.0
-    d = camera_frame_directions(w, h, hfov)  # CONVENTIONS.md pinhole directions
+    d = camera_frame_directions(w, h, hfov)  # docs/conventions.md pinhole directions
     pos, lod = plate_positions(d, w, h, hfov)
     py, px = np.mgrid[0:h, 0:w] + 0.5
     assert np.abs(pos[..., 0] - px).max() < 1e-3 and np.abs(pos[..., 1] - py).max() < 1e-3
@@ -82,7 +82,7 @@ def _map(plate, hfov=60.0, width=256, **kw):
 
 
 def _texel(direction, width):
-    """(row, column) of the lat-long texel holding camera-frame `direction` (CONVENTIONS.md)."""
+    """(row, column) of the lat-long texel holding camera-frame `direction` (docs/conventions.md)."""
     d = np.asarray(direction, float) / np.linalg.norm(direction)
     lat, lon = math.asin(d[1]), math.atan2(d[0], d[2])
     row = int((0.5 - lat / math.pi) * (width // 2))

@@ -1,4 +1,4 @@
-"""Layout conventions: CONVENTIONS.md lat-long, OpenEXR ImfEnvmap cube faces."""
+"""Layout conventions: docs/conventions.md lat-long, OpenEXR ImfEnvmap cube faces."""
 
 import numpy as np
 import pytest
@@ -12,7 +12,7 @@ def test_latlong_centre_is_the_view_direction_and_left_half_is_plus_x():
     assert d[h // 2, w // 2] == pytest.approx([0.0, 0.0, 1.0], abs=0.1)  # forward
     assert (d[:, : w // 2, 0] > 0).all() and (d[:, w // 2 :, 0] < 0).all()
     assert (d[: h // 2, :, 1] > 0).all()  # top rows look up
-    # Pixel centre formula of CONVENTIONS.md.
+    # Pixel centre formula of docs/conventions.md.
     x, y = 5, 7
     lat, lon = -np.pi * ((y + 0.5) / h - 0.5), -2 * np.pi * ((x + 0.5) / w - 0.5)
     expected = [np.sin(lon) * np.cos(lat), np.sin(lat), np.cos(lon) * np.cos(lat)]

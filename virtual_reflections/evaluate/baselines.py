@@ -6,7 +6,7 @@ Every method has one signature, the one `virtual_reflections.methods.METHODS` us
 
 `plate_linear` is `(H, W, 3)` float32 scene-linear Rec.709; `bbox` = (x0, y0, x1, y1) in plate
 pixels (origin top-left, y down, x1/y1 exclusive); the map is in the camera frame
-(CONVENTIONS.md: +Z the plate's centre, +Y up, +X the plate's left).
+(docs/conventions.md: +Z the plate's centre, +Y up, +X the plate's left).
 """
 
 from __future__ import annotations

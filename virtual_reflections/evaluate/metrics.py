@@ -120,7 +120,7 @@ def plate_view_mask(map_width: int, plate_width: int, plate_height: int, hfov_de
 
     A texel counts when its centre projects into the plate at least one texel footprint (in
     plate pixels, at the plate's centre) away from every edge, so its whole footprint, and the
-    filter a map builder may use there, lies inside the plate. Projection (CONVENTIONS.md):
+    filter a map builder may use there, lies inside the plate. Projection (docs/conventions.md):
     `px = W/2 - f x / z`, `py = H/2 - f y / z`, `f = (W/2) / tan(hfov / 2)`.
     """
     f = focal_length_pixels(plate_width, hfov_deg)

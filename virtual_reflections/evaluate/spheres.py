@@ -4,7 +4,7 @@ These are the renders the lighting-estimation literature compares (DiffusionLigh
 a perfect mirror, a glossy "matte silver" sphere and a white Lambertian sphere, each lit only by
 the distant environment in the map (no self-shadowing, no inter-reflection).
 
-Frames (CONVENTIONS.md):
+Frames (docs/conventions.md):
 
 - Maps are lat-long in the **camera frame** (+Z the viewing direction, +Y up, +X the plate's
   left): pixel centre `(x + 0.5, y + 0.5)` of a W x H map (W = 2H) has

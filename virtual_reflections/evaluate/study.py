@@ -66,7 +66,7 @@ class Placement:
     size: float
 
     def bbox(self, width: int, height: int):
-        """(x0, y0, x1, y1) in plate pixels; may reach outside the plate (CONVENTIONS.md)."""
+        """(x0, y0, x1, y1) in plate pixels; may reach outside the plate (docs/conventions.md)."""
         half = 0.5 * self.size * height
         x, y = self.cx * width, self.cy * height
         return (x - half, y - half, x + half, y + half)
