@@ -9,29 +9,18 @@ Loaded the way the tests load it (a package that is not in ``preferences.addons`
 returns `DEFAULTS`, plain values with the same names, so nothing else needs to care.
 """
 
-import os
-from types import SimpleNamespace
-
 import bpy
-from bpy.props import BoolProperty, EnumProperty
+from bpy.props import EnumProperty
 
-from .ui.properties import COMBINE_ITEMS, RESOLUTION_ITEMS
-
-FOLDER_ITEMS = (
-    (
-        "BLEND",
-        "Beside the .blend",
-        "A vr_maps folder next to the .blend file (travels with the shot; save the file first)",
-    ),
-    (
-        "USER",
-        "Extension User Folder",
-        "Blender's per-user folder for this extension, maps/<file name>/ (works for unsaved "
-        "files; stays on this machine)",
-    ),
+from .operators import maps, shading
+from .operators.choices import (
+    COMBINE_ITEMS,
+    DEFAULTS,
+    MAP_FOLDER_ITEMS,
+    MAP_STORAGE_ITEMS,
+    RESOLUTION_ITEMS,
+    addon_preferences,
 )
-
-DEFAULTS = SimpleNamespace(combine="REPLACE", resolution="AUTO", pack_maps=True, map_folder="BLEND")
 
 
 class VR_AddonPreferences(bpy.types.AddonPreferences):
@@ -49,15 +38,16 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         default=DEFAULTS.resolution,
         description="Map resolution new files start with",
     )
-    pack_maps: BoolProperty(
-        name="Pack Maps into the .blend",
-        default=DEFAULTS.pack_maps,
-        description="New files pack their maps into the .blend when it is saved; off: maps are "
-        "saved as EXR files in the folder below",
+    map_storage: EnumProperty(
+        name="Maps",
+        items=MAP_STORAGE_ITEMS,
+        default=DEFAULTS.map_storage,
+        description="Where new files keep their maps: packed into the .blend, or saved as EXR "
+        "files in the folder below",
     )
     map_folder: EnumProperty(
         name="Saved Maps",
-        items=FOLDER_ITEMS,
+        items=MAP_FOLDER_ITEMS,
         default=DEFAULTS.map_folder,
         description="Where maps go when a scene saves them as files",
     )
@@ -69,11 +59,11 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         col = layout.column(heading="New Files")
         col.prop(self, "combine")
         col.prop(self, "resolution")
-        col.prop(self, "pack_maps")
+        col.prop(self, "map_storage")
         col = layout.column()
         col.prop(self, "map_folder")
         try:
-            where = maps_folder(create=False)
+            where = maps.maps_folder(create=False)
         except ValueError as exc:
             where = str(exc)
         col.label(text=where, icon="FILE_FOLDER")
@@ -82,37 +72,11 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
 def get(context=None):
     """The add-on's preferences, or `DEFAULTS` when it is not an enabled add-on (tests,
     scripts that import the package)."""
-    preferences = getattr(context or bpy.context, "preferences", None)
-    addon = preferences.addons.get(__package__) if preferences is not None else None
-    if addon is None or addon.preferences is None:
-        return DEFAULTS
-    return addon.preferences
-
-
-def maps_folder(create=True) -> str:
-    """The folder saved maps go to. Raises ValueError (one line) when the preferences say
-    "beside the .blend" and the file has not been saved yet."""
-    blend = bpy.data.filepath
-    if get().map_folder == "USER":
-        stem = bpy.path.display_name_from_filepath(blend) if blend else "untitled"
-        try:
-            return bpy.utils.extension_path_user(
-                __package__, path=os.path.join("maps", bpy.path.clean_name(stem)), create=create
-            )
-        except ValueError:
-            pass  # not installed as an extension (imported by a test or a script): beside it
-    if not blend:
-        raise ValueError(
-            "save the .blend first to save maps beside it (or pack them, or pick the "
-            "extension user folder in the preferences)"
-        )
-    return os.path.join(os.path.dirname(bpy.path.abspath(blend)), "vr_maps")
+    return addon_preferences(context)
 
 
 def _untouched(scene) -> bool:
     """True when the add-on has done nothing in ``scene`` yet (no map, no report)."""
-    from .operators import shading
-
     settings = scene.virtual_reflections
     if settings.last_report or scene.get(shading.WORLD_RECORD) is not None:
         return False
@@ -120,12 +84,13 @@ def _untouched(scene) -> bool:
 
 
 def apply_defaults(scene, prefs=None) -> bool:
-    """Give ``scene`` the preferred combine mode, resolution and packing, once.
+    """Give ``scene`` the preferred combine mode, resolution and map storage, once.
 
     A scene is set once (``defaults_applied``), and only while the add-on has done nothing in
     it; a new, unsaved file takes the current preferences again. Returns True when it set them.
     """
     settings = scene.virtual_reflections
+    _migrate(settings)
     if settings.defaults_applied and bpy.data.filepath:
         return False
     if not _untouched(scene):
@@ -134,9 +99,16 @@ def apply_defaults(scene, prefs=None) -> bool:
     prefs = prefs or get()
     settings.combine = prefs.combine
     settings.resolution = prefs.resolution
-    settings.save_maps = not prefs.pack_maps
+    settings.map_storage = prefs.map_storage
     settings.defaults_applied = True
     return True
+
+
+def _migrate(settings):
+    """Files saved before map storage was one choice hold the boolean ``save_maps``."""
+    if "save_maps" in settings.keys():
+        settings.map_storage = "FILES" if settings["save_maps"] else "PACK"
+        del settings["save_maps"]
 
 
 @bpy.app.handlers.persistent

@@ -74,7 +74,9 @@ def main():
                 obj.location.x = 0.01 * (i + 1)  # new bounds: the table is rebuilt
                 bpy.context.view_layer.update()
             t = time.perf_counter()
-            report = generate.generate(bpy.context, [obj])
+            report = generate.generate(
+                bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [obj]
+            )
             ends[case].append(time.perf_counter() - t)
             rows[case].append(report.timings)
     for case, label in (("moved", "object moved (table built)"), ("same", "unchanged (cached)")):

@@ -41,7 +41,7 @@ def build_scene(generate, method="CAMERA"):
     settings = scene.virtual_reflections
     settings.method = method
     settings.combine = "REPLACE"
-    report = generate.generate(bpy.context, [obj])
+    report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [obj])
     assert report.done, report.warnings
     settings.live_update = True
     bpy.context.view_layer.update()
@@ -87,8 +87,8 @@ def main():
         print(
             f"Blender {bpy.app.version_string}, Python {platform.python_version()}, "
             f"NumPy {np.__version__}, {os.cpu_count()} cores; sphere {len(obj.data.vertices)} "
-            f"vertices; plate 1920x1080 8-bit; map 1024x512, moving {live.PREVIEW_WIDTH}x"
-            f"{live.PREVIEW_WIDTH // 2}; method {args.method}"
+            f"vertices; plate 1920x1080 8-bit; map 1024x512, moving {live.MOVING_WIDTH}x"
+            f"{live.MOVING_WIDTH // 2}; method {args.method}"
         )
         drag(live, obj, 10, full=False, start=1000)  # warm up: reduced plate, pyramids, caches
         times, reports = drag(live, obj, args.steps, full=False)

@@ -1,8 +1,20 @@
-"""Everything that touches bpy data: bounds, images, node groups, renders."""
+"""The Blender layer: everything that touches bpy data, in layers that import only downward
+(docs/architecture.md):
 
-from . import generate, interreflect, live, maps, previews, sequence
+    choices, images, bounds                  -- no other module of the add-on
+    plate, shading, maps, compositor         -- Blender data helpers
+    pipeline                                 -- the one way a map is built
+    generate, sequence, live, previews,      -- features
+    interreflect
+    batch                                    -- the headless entry (render_shot.py)
+    ops                                      -- the operators
 
-_modules = (maps, generate, interreflect, sequence, live, previews)
+Only modules with something to register are listed here, in that order.
+"""
+
+from . import live, maps, ops, previews, sequence
+
+_modules = (maps, sequence, live, previews, ops)
 
 
 def register():

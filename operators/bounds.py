@@ -50,6 +50,12 @@ class ScreenBounds:
             box = [min(max(v, 0), size) for v, size in zip(box, (self.width, self.height) * 2)]
         return tuple(box)
 
+    def extent(self) -> float:
+        """The larger side of the box cut to the frame, in render pixels (0 when outside)."""
+        w = min(self.x1, self.width) - max(self.x0, 0.0)
+        h = min(self.y1, self.height) - max(self.y0, 0.0)
+        return max(w, h, 0.0)
+
 
 @dataclass(frozen=True, eq=False)
 class CameraProjection:
@@ -93,6 +99,20 @@ class CameraProjection:
         px = (x - left) * (self.width / (right - left))
         py = (top - y) * (self.height / (top - bottom))
         return px, py
+
+    def plate_scale(self, plate_shape) -> tuple[float, float]:
+        """(sx, sy): render pixels -> pixels of a plate of ``plate_shape`` (H, W, ...)."""
+        return plate_shape[1] / self.width, plate_shape[0] / self.height
+
+    def intrinsics(self, sx: float = 1.0, sy: float = 1.0):
+        """(fx, fy, cx, cy) of a perspective camera in plate pixels (render pixels scaled by
+        ``sx``, ``sy``; lens shift and pixel aspect included), or None when orthographic."""
+        if self.orthographic:
+            return None
+        left, right, bottom, top = self.frame  # on the plane z = -1
+        fx = self.width / (right - left) * sx
+        fy = self.height / (top - bottom) * sy
+        return (fx, fy, -left * fx, top * fy)
 
 
 def camera_projection(scene, camera_obj=None) -> CameraProjection:
@@ -169,19 +189,6 @@ def object_bounds(obj, depsgraph, scene, camera_obj=None, *, projection=None) ->
     finally:
         obj_eval.to_mesh_clear()
     return _bounds(projection, points, len(local))
-
-
-def project_points(points_world: np.ndarray, scene, camera_obj=None):
-    """(N, 3) world points -> ((N, 2) float64 plate pixels (px, py), (N,) bool in front).
-
-    In front means beyond the near plane (depth >= clip_start); rows not in front are NaN.
-    """
-    projection = camera_projection(scene, camera_obj)
-    cam = projection.to_camera(np.asarray(points_world, dtype=np.float64).reshape(-1, 3).T)
-    in_front = -cam[2] >= projection.clip_start
-    pixels = np.full((len(in_front), 2), np.nan)
-    pixels[in_front] = np.stack(projection.to_pixels(*projection.frame_coords(cam[:, in_front])), 1)
-    return pixels, in_front
 
 
 def _read(collection, attribute, width, dtype):

@@ -1,13 +1,5 @@
-"""The plate in Blender: read its pixels, set the scene up to render over it, composite.
-
-Pure functions; the operators wrap them.
-
-Colour: every array here is scene-linear Rec.709 float32 unless it says otherwise. A byte
-(8-bit) image's ``pixels`` are the file's sRGB-encoded values / 255 (Blender does not convert
-them), so they are decoded with the sRGB EOTF; a float image's ``pixels`` (EXR, HDR, and 16-bit
-PNG/TIFF, which Blender loads into a float buffer) are already converted to the scene-linear
-working space on load. Pixel rows: Blender stores them bottom-up; arrays here are top row first
-(docs/conventions.md, "Plate pixels").
+"""Set a scene up to render over its plate, and undo it: render size, camera background,
+transparent film, and the compositor putting the render over the plate.
 
 The compositor API changed in Blender 5.0, and `setup_from_plate` handles both:
 
@@ -29,161 +21,18 @@ Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
 
 import contextlib
 import json
-import os
 
 import bpy
-import numpy as np
 
-from ..virtual_reflections.colour import clean_plate, decode_uint
+from ..virtual_reflections.frames import sequence_range
+from . import plate
+from .images import CREATED
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
-CREATED = "vr_created"  # on the node group this module made (5.x)
-GROUP_NAME = "VR Composite"
+GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
 PREFIX = "VR "  # every node this module adds is named with it
 
 _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
-_DATA_SPACES = {"Non-Color", "Raw"}  # colour spaces whose values are data, used as is
-
-
-# --- plate pixels ------------------------------------------------------------------------------
-
-
-def _disk_path(image):
-    """The absolute path an image reads its pixels from, or None (packed, generated, ...)."""
-    if image.source not in {"FILE", "SEQUENCE", "MOVIE"} or not image.filepath:
-        return None
-    if image.packed_file is not None or len(image.packed_files):
-        return None
-    return os.path.normpath(bpy.path.abspath(image.filepath, library=image.library))
-
-
-def _loaded_size(image) -> tuple[int, int]:
-    """Load `image` if needed and return its (width, height); ValueError when it has no pixels.
-
-    A missing file is checked before anything touches the pixels: Blender would otherwise
-    carry on with an empty (or, in the UI, pink placeholder) buffer.
-    """
-    if image is None:
-        raise ValueError("No plate image: choose an image (or a camera background image)")
-    path = _disk_path(image)
-    if path is not None and not os.path.exists(path):
-        raise ValueError(f"Plate image '{image.name}': file not found: {path}")
-    if image.source in {"SEQUENCE", "MOVIE"} and path is not None:
-        from . import sequence  # a frame's size: Image.size shows no frame until one is loaded
-
-        return sequence.frame_size(image)
-    width, height = image.size  # loads the file on first access
-    if not image.has_data:  # nothing in memory, so reload() loses nothing
-        image.reload()
-        width, height = image.size
-    if not image.has_data:
-        if path is not None:
-            raise ValueError(
-                f"Plate image '{image.name}' could not be loaded from {path} "
-                "(unsupported or damaged file)"
-            )
-        raise ValueError(f"Plate image '{image.name}' has no pixels ({width}x{height})")
-    if width == 0 or height == 0:
-        raise ValueError(f"Plate image '{image.name}' has no pixels ({width}x{height})")
-    return width, height
-
-
-def plate_image_pixels(image) -> tuple[np.ndarray, str]:
-    """A Blender image's pixels -> ((H, W, 3) float32 scene-linear Rec.709, top row first; info).
-
-    Byte images are decoded from sRGB (128 -> 0.216); float images are used as they are
-    (Blender made them scene-linear on load); images whose colour space is data (Non-Color/Raw)
-    are used as is, and so are byte images in a linear space; other byte spaces are decoded as
-    sRGB and the info says so. Alpha is ignored. NaN/Inf values are replaced
-    (`colour.clean_plate`) and counted in the info. Movies and sequences give the frame Blender
-    has loaded for the image (its current frame; no image-user frame mapping here).
-
-    Raises ValueError (one line, naming the image or file) for: no image, a file missing on
-    disk, a file Blender cannot load, an image without pixels (0x0).
-    """
-    width, height = _loaded_size(image)
-    count = len(image.pixels)
-    channels = count // (width * height)
-    if channels < 1 or channels * width * height != count:
-        raise ValueError(
-            f"Plate image '{image.name}': {count} pixel values do not fit {width}x{height}"
-        )
-    buffer = np.empty(count, dtype=np.float32)
-    image.pixels.foreach_get(buffer)
-    rows = buffer.reshape(height, width, channels)[::-1, :, :3]  # bottom-up -> top row first
-
-    space = image.colorspace_settings.name
-    is_data = image.colorspace_settings.is_data or space in _DATA_SPACES
-    notes = [f"Plate '{image.name}' {width}x{height}"]
-    if image.is_float:
-        linear = rows
-        if is_data:
-            notes.append(f"float, colour space {space} (data): used as is")
-        else:
-            notes.append("float, scene-linear as loaded")
-            working = _working_space()
-            if working not in (None, "Linear Rec.709"):
-                notes.append(f"note: the file's working space is {working}, not Linear Rec.709")
-    elif is_data or space.startswith("Linear"):
-        linear = rows
-        notes.append(f"8-bit, colour space {space}: used as is (not sRGB-decoded)")
-    else:
-        # Byte pixels are exactly k / 255: decode through the table of srgb_to_linear(k / 255),
-        # ~4x faster than the power law on a 4K plate.
-        codes = np.rint(np.multiply(buffer, 255.0, out=buffer), out=buffer).astype(np.uint8)
-        linear = decode_uint(codes.reshape(height, width, channels)[::-1, :, :3])
-        if space == "sRGB":
-            notes.append("8-bit sRGB, decoded to scene-linear")
-        else:
-            notes.append(f"8-bit, colour space {space} is not sRGB: decoded as sRGB anyway")
-    if image.source in {"MOVIE", "SEQUENCE"}:
-        notes.append(f"{image.source.lower()}: the frame currently loaded")
-    cleaned = clean_plate(linear)
-    if cleaned.nonfinite:
-        notes.append(f"{cleaned.nonfinite} NaN/Inf values replaced")
-    return cleaned.pixels, "; ".join(notes)
-
-
-def _working_space():
-    """The blend file's scene-linear working space (5.x: per file); None where fixed (4.5)."""
-    settings = getattr(bpy.data, "colorspace", None)
-    return getattr(settings, "working_space", None) if settings is not None else None
-
-
-def scene_plate(scene):
-    """The plate of a scene: ``scene.virtual_reflections.plate_image`` when set, else the first
-    shown IMAGE background image of the active camera. Returns a bpy Image or None."""
-    settings = getattr(scene, "virtual_reflections", None)
-    image = getattr(settings, "plate_image", None)
-    if image is not None:
-        return image
-    camera = scene.camera
-    if camera is None or camera.type != "CAMERA":
-        return None
-    for background in camera.data.background_images:
-        if background.source == "IMAGE" and background.image and background.show_background_image:
-            return background.image
-    return None
-
-
-# --- compositing in NumPy ----------------------------------------------------------------------
-
-
-def composite_over_plate(render_rgba: np.ndarray, plate: np.ndarray) -> np.ndarray:
-    """Alpha-over: (H, W, 4) premultiplied render over an (H, W, 3) plate -> (H, W, 3) float32.
-
-    All scene-linear: ``render.rgb + plate * (1 - render.alpha)``, what Blender's Alpha Over node
-    computes for a premultiplied foreground (its default) at factor 1.
-    """
-    render = np.asarray(render_rgba, dtype=np.float32)
-    back = np.asarray(plate, dtype=np.float32)
-    if render.ndim != 3 or render.shape[2] != 4:
-        raise ValueError(f"the render must be (H, W, 4) RGBA, got shape {render.shape}")
-    if back.ndim != 3 or back.shape[2] != 3 or back.shape[:2] != render.shape[:2]:
-        raise ValueError(f"the plate must be (H, W, 3) like the render, got shape {back.shape}")
-    out = back * (1.0 - render[..., 3:4])
-    out += render[..., :3]
-    return out
 
 
 # --- scene setup -------------------------------------------------------------------------------
@@ -199,7 +48,7 @@ def setup_from_plate(scene, image) -> dict:
     deleted. Calling it again first undoes the previous setup, so nothing stacks and
     `undo_setup_from_plate` still returns to the state before the first call.
     """
-    width, height = _loaded_size(image)
+    width, height = plate.size(image)
     if RECORD in scene:
         undo_setup_from_plate(scene)
     render = scene.render
@@ -305,12 +154,10 @@ def _plate_node(tree, image, location):
     node.image = image
     if image.source in {"MOVIE", "SEQUENCE"}:  # the whole clip from scene frame 1, refreshed
         count = image.frame_duration
-        path = _disk_path(image)
+        path = plate.disk_path(image)
         if image.source == "SEQUENCE" and path is not None:
-            from . import sequence
-
             with contextlib.suppress(ValueError):  # no number in the name: Blender's count
-                first, count = sequence.sequence_range(path)
+                first, count = sequence_range(path)
                 node.frame_offset = first - 1
         node.frame_duration = max(count, 1)
         node.use_auto_refresh = True

@@ -19,7 +19,7 @@ r = 2 the objects in each other, r = 3 those reflections again, and so on. Here,
   elsewhere -- their mirror images in other glossy virtual objects, the glow of a Replace-mode
   emission on the ground -- stays as the first pass rendered it.)
 - Later passes build each map with Generate itself, given the masked composite as the plate
-  (``generate.generate(..., plate=...)``): the same bounds, map size and settings as pass 1, so
+  (``generate.generate(..., pixels=...)``): the same bounds, map size and settings as pass 1, so
   the engine's cached lookup table is found again, the map image is updated in place
   (`maps.store_map`) and the material copies are rewired, not multiplied (`shading.attach`
   first takes off what it attached before).
@@ -32,11 +32,11 @@ module returns are at the render's size, over the plate scaled down (nearest), a
 entry composites. Everything is scene-linear Rec.709 float32.
 
 Rendering: the render is written as a multilayer EXR (Combined and the object index of the
-scene's active view layer) into a temporary folder and read with OpenImageIO (bundled with
-Blender). Everything changed for that -- output format and path, border, compositing, film,
-persistent data (the bpy 4.5 module's Cycles does not see map updates with it), the object
-index pass, the objects' pass indices, Update Every Frame -- is restored afterwards, also on
-errors.
+depsgraph's view layer) into a temporary folder and read with the engine's reader
+(OpenImageIO, bundled with Blender). Everything changed for that -- output format and path,
+border, compositing, film, persistent data (the bpy 4.5 module's Cycles does not see map
+updates with it), the object index pass, the objects' pass indices, Update Every Frame -- is
+restored afterwards, also on errors.
 """
 
 import contextlib
@@ -49,11 +49,13 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import compositor, generate, maps
+from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
+from ..virtual_reflections.imagefiles import read_channels
+from . import generate
+from .plate import NO_PLATE, scene_plate
 
 R_MAX = 8  # the most passes "auto" renders unless told otherwise
 TOLERANCE = 1.0 / 255.0  # "auto" stops when a pass changes the objects' pixels less than this
-COMPOSITE_IMAGE = "VR Composite"
 MASK_GROW = 1  # px added around each object's index mask (the index is not antialiased)
 REGION_PAD = 2  # px around the objects that later passes replace (the pixel filter's reach)
 BORDER_PAD = 2  # px rendered around that region, so the border's rounding never leaves a gap
@@ -92,34 +94,35 @@ class PassReport:
 
 
 def render_passes(
-    context,
+    scene,
+    depsgraph,
     objects,
-    plate,
+    pixels,
     passes=1,
     tolerance=TOLERANCE,
     r_max=R_MAX,
     progress=None,
     *,
-    _self_mask=True,
+    self_mask=True,
 ):
     """Render ``objects`` with r-level inter-reflections; returns ``(composite, rgba, reports)``.
 
-    plate: the scene's plate, (H, W, 3) float32 scene-linear, as `generate.plate_pixels` gives
+    depsgraph: the evaluated depsgraph of the view layer to render (its object index pass is
+    read). pixels: the scene's plate, (H, W, 3) float32 scene-linear, as `plate.pixels` gives
     it (pass 1 is Generate, which reads the scene's plate itself). passes: r, an int >= 1, or
     "auto": passes until one changes the objects' pixels by less than ``tolerance`` (mean
     absolute, scene-linear), at most ``r_max``. progress: called with the number of passes done.
     composite: (h, w, 3) float32, the last render over the plate; rgba: (h, w, 4) float32
     premultiplied, the last render (later passes pasted into the first); reports: one
-    `PassReport` per pass. ``_self_mask=False`` lets objects see their own previous image
-    (for tests). Raises ValueError (one line) when nothing can be rendered.
+    `PassReport` per pass. ``self_mask=False`` follows Listing 1 literally: objects see their
+    own previous image too. Raises ValueError (one line) when nothing can be rendered.
     """
-    scene = context.scene
     settings = scene.virtual_reflections
     limit = _pass_limit(passes, r_max)
-    plate = np.asarray(plate, dtype=np.float32)
-    image = compositor.scene_plate(scene)
+    plate = np.asarray(pixels, dtype=np.float32)
+    image = scene_plate(scene)
     if image is None:
-        raise ValueError("no plate: pick a plate image or give the camera a background image")
+        raise ValueError(NO_PLATE)
     if plate.ndim != 3 or plate.shape[2] != 3 or plate.shape[1::-1] != tuple(image.size):
         raise ValueError(
             f"the plate must be the scene's plate pixels ({image.size[0]}x{image.size[1]}x3), "
@@ -129,13 +132,13 @@ def render_passes(
         raise ValueError(
             "inter-reflections need a map per object: choose a combine mode other than World"
         )
-    layer = _view_layer(context)
+    layer = depsgraph.view_layer
     reports = []
     with tempfile.TemporaryDirectory(prefix="vr-passes-") as folder:
         path = os.path.join(folder, "pass.exr")
         # Pass 1: Generate, then one full render.
         started = time.perf_counter()
-        generated = generate.generate(context, objects)
+        generated = generate.generate(scene, depsgraph, objects)
         maps_seconds = time.perf_counter() - started
         by_name = {obj.name: obj for obj in objects}
         done = [by_name[name] for name in generated.done]
@@ -144,8 +147,8 @@ def render_passes(
         with _render_state(scene, layer, path, done) as ids:
             rgba, index, render_seconds = _render(scene, layer, path)
             h, w = rgba.shape[:2]
-            plate_small = _resample(plate, h, w)
-            composite = compositor.composite_over_plate(rgba, plate_small)
+            plate_small = resize_nearest(plate, h, w)
+            composite = over(rgba, plate_small)
             own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
             coverage = np.logical_or.reduce(list(own.values()))
             reports.append(
@@ -167,31 +170,31 @@ def render_passes(
             x0, y0, x1, y1 = border = _border(done, coverage, plate.shape, (h, w))
             # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
             # render pixels `sub` (nearest).
-            ys, xs = _upsample(plate.shape[0], h), _upsample(plate.shape[1], w)
+            ys, xs = nearest_rows(h, plate.shape[0]), nearest_rows(w, plate.shape[1])
             (Y0, Y1), (X0, X1) = np.searchsorted(ys, (y0, y1)), np.searchsorted(xs, (x0, x1))
             sub = np.ix_(ys[Y0:Y1], xs[X0:X1])
             own_sub = {obj: mask[sub] for obj, mask in own.items()}
             # The composite at the plate's size; outside the region it stays pass 1's.
-            source = compositor.composite_over_plate(rgba[np.ix_(ys, xs)], plate)
+            source = over(rgba[np.ix_(ys, xs)], plate)
             inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
             _set_border(scene.render, border, (h, w))
             for k in range(2, limit + 1):
                 started = time.perf_counter()
                 # The previous composite is the new plate ...
-                inside[...] = compositor.composite_over_plate(rgba[sub], plate_inside)
+                inside[...] = over(rgba[sub], plate_inside)
                 for obj in done:
                     # ... except where the object itself is: there it sees the original plate.
                     # Generate builds the map exactly as in pass 1 (same bounds, size and
                     # settings: the engine's cached table) and stores it in place.
-                    mine = own_sub[obj] if _self_mask else np.zeros(inside.shape[:2], bool)
+                    mine = own_sub[obj] if self_mask else np.zeros(inside.shape[:2], bool)
                     kept = inside[mine]
                     inside[mine] = plate_inside[mine]
-                    generate.generate(context, [obj], plate=source)
+                    generate.generate(scene, depsgraph, [obj], pixels=source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started
                 new, _, render_seconds = _render(scene, layer, path)
                 rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
-                previous, composite = composite, compositor.composite_over_plate(rgba, plate_small)
+                previous, composite = composite, over(rgba, plate_small)
                 reports.append(
                     PassReport(
                         k,
@@ -217,7 +220,7 @@ CAMERA_NOTE = (
 
 def _method_note(settings, limit, count) -> tuple:
     """A warning when passes would show little: several objects under Camera View."""
-    if limit > 1 and count > 1 and getattr(settings, "method", "PAPER") == "CAMERA":
+    if limit > 1 and count > 1 and settings.method == "CAMERA":
         return (CAMERA_NOTE,)
     return ()
 
@@ -230,16 +233,6 @@ def _pass_limit(passes, r_max):
     if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
         raise ValueError(f"passes must be a whole number >= 1 or 'auto', not {passes!r}")
     return passes
-
-
-def _view_layer(context):
-    """The view layer rendered and read: the context's when it is the scene's, else the
-    scene's first."""
-    scene = context.scene
-    layer = getattr(context, "view_layer", None)
-    if layer is not None and scene.view_layers.get(layer.name) == layer:
-        return layer
-    return scene.view_layers[0]
 
 
 # --- the render and its files -------------------------------------------------------------------
@@ -310,7 +303,7 @@ def _render(scene, layer, path):
     started = time.perf_counter()
     bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
     seconds = time.perf_counter() - started
-    channels = _read_channels(path)
+    channels = read_channels(path)
     names = [f"{layer.name}.Combined.{c}" for c in "RGBA"]
     missing = [n for n in names if n not in channels]
     if missing:
@@ -325,60 +318,7 @@ def _render(scene, layer, path):
     return rgba, np.rint(index).astype(np.int32), seconds
 
 
-def _read_channels(path):
-    """Every channel of a (multi-part) EXR by name: {name: (h, w) float32}, top row first."""
-    import OpenImageIO as oiio
-
-    image = oiio.ImageInput.open(path)
-    if image is None:
-        raise ValueError(f"cannot read the render {path}: {oiio.geterror()}")
-    channels = {}
-    try:
-        part = 0
-        while image.seek_subimage(part, 0):  # 5.x writes one part per pass
-            spec = image.spec()
-            pixels = image.read_image(part, 0, 0, spec.nchannels, "float")
-            pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
-            for c, name in enumerate(spec.channelnames):
-                channels[name] = pixels[..., c]
-            part += 1
-    finally:
-        image.close()
-    return channels
-
-
-def write_render(path, rgba):
-    """Write an (h, w, 4) float32 premultiplied render as a scene-linear float RGBA EXR."""
-    import OpenImageIO as oiio
-
-    h, w = rgba.shape[:2]
-    out = oiio.ImageOutput.create(path)
-    if out is None:
-        raise ValueError(f"cannot write {path}: {oiio.geterror()}")
-    spec = oiio.ImageSpec(w, h, 4, "float")
-    spec.attribute("compression", "zip")
-    ok = out.open(path, spec) and out.write_image(np.ascontiguousarray(rgba, np.float32))
-    ok = out.close() and ok
-    if not ok:
-        raise ValueError(f"cannot write {path}: {out.geterror()}")
-
-
 # --- pixels ------------------------------------------------------------------------------------
-
-
-def _resample(pixels, h, w):
-    """(H, W, C) -> (h, w, C), nearest pixel centres (as the batch entry scales the plate)."""
-    if pixels.shape[:2] == (h, w):
-        return pixels
-    ys = ((np.arange(h) + 0.5) * pixels.shape[0] / h).astype(int)
-    xs = ((np.arange(w) + 0.5) * pixels.shape[1] / w).astype(int)
-    return pixels[np.ix_(ys, xs)]
-
-
-def _upsample(size, render_size):
-    """For each of ``size`` plate rows (or columns), the render row (column) of ``render_size``
-    whose area holds its centre."""
-    return np.minimum(((np.arange(size) + 0.5) * render_size / size).astype(int), render_size - 1)
 
 
 def _grow(mask, pixels):
@@ -419,118 +359,3 @@ def _border(objects, coverage, plate_shape, render_size):
         min(max(math.ceil(x1) + REGION_PAD, 0), w),
         min(max(math.ceil(y1) + REGION_PAD, 0), h),
     )
-
-
-# --- the batch entry ---------------------------------------------------------------------------
-
-
-def render_shot_passes(context, objects, passes, render_path, log=print):
-    """The batch entry's ``--passes`` (operators/batch.py): `render_passes` on the scene's
-    plate, the last render written to ``render_path`` (RGBA float EXR, scene-linear), one log
-    line per pass. Returns the (h, w, 3) float32 composite."""
-    scene = context.scene
-    if not objects:
-        raise ValueError("no object to reflect the plate (use --objects or mark objects)")
-    image = compositor.scene_plate(scene)
-    if image is None:
-        raise ValueError("no plate: pick a plate image or give the camera a background image")
-    plate, _ = generate.plate_pixels(scene, image)
-    composite, rgba, reports = render_passes(context, objects, plate, passes)
-    for warning in reports[0].warnings:
-        log(f"warning: {warning}")
-    for report in reports:
-        log(report.line())
-    log(f"{len(reports)} pass(es) in {sum(r.seconds for r in reports):.2f} s")
-    write_render(render_path, rgba)
-    return composite
-
-
-# --- the operator ------------------------------------------------------------------------------
-
-
-def show_composite(context, composite):
-    """Put an (h, w, 3) composite into the image "VR Composite" (made by the add-on, updated in
-    place, removed with the maps) and show it in the open Image Editors."""
-    image = maps.store_map(COMPOSITE_IMAGE, composite)
-    screen = getattr(context, "screen", None)
-    for area in screen.areas if screen is not None else ():
-        if area.type == "IMAGE_EDITOR":
-            area.spaces.active.image = image
-    return image
-
-
-class VR_OT_render_passes(bpy.types.Operator):
-    """Render the reflective objects reflecting each other (paper §3.3): each pass builds the
-    maps from the previous composite. The result goes to the image "VR Composite\""""
-
-    bl_idname = "vr.render_passes"
-    bl_label = "Render Inter-Reflections"
-    bl_options = {"REGISTER", "UNDO"}
-
-    passes: bpy.props.IntProperty(
-        name="Passes",
-        description="Recursion depth r: 1 reflects the plate only, 2 the objects in each other, "
-        "3 those reflections again",
-        default=2,
-        min=1,
-        max=32,
-        soft_max=8,
-    )
-    auto: bpy.props.BoolProperty(
-        name="Until Converged",
-        description=f"Render passes until one changes the image less than the tolerance "
-        f"(at most {R_MAX})",
-        default=False,
-    )
-    tolerance: bpy.props.FloatProperty(
-        name="Tolerance",
-        description="Mean change of the objects' pixels (scene-linear) under which Until "
-        "Converged stops",
-        default=TOLERANCE,
-        min=0.0,
-        soft_max=0.05,
-        precision=4,
-    )
-
-    @classmethod
-    def poll(cls, context):
-        reason = generate.why_not_generate(context)
-        if reason:
-            cls.poll_message_set(reason)
-        return reason is None
-
-    def execute(self, context):
-        scene = context.scene
-        passes = "auto" if self.auto else self.passes
-        wm = context.window_manager
-        wm.progress_begin(0, R_MAX if self.auto else self.passes)
-        try:
-            plate, _ = generate.plate_pixels(scene, compositor.scene_plate(scene))
-            composite, _, reports = render_passes(
-                context,
-                generate.candidates(context),
-                plate,
-                passes,
-                tolerance=self.tolerance,
-                progress=wm.progress_update,
-            )
-        except (ValueError, RuntimeError) as exc:
-            self.report({"ERROR"}, str(exc).strip().splitlines()[0])
-            return {"CANCELLED"}
-        finally:
-            wm.progress_end()
-        show_composite(context, composite)
-        for warning in reports[0].warnings:
-            self.report({"WARNING"}, warning)
-        total = sum(r.seconds for r in reports)
-        per_pass = "; ".join(
-            f"{r.index}: {r.seconds:.1f} s, change {r.change:.4f}" for r in reports
-        )
-        summary = f"{len(reports)} pass(es) in {total:.1f} s ({per_pass}) -> '{COMPOSITE_IMAGE}'"
-        scene.virtual_reflections.last_report = summary
-        self.report({"INFO"}, summary)
-        return {"FINISHED"}
-
-
-classes = (VR_OT_render_passes,)
-register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,7 +1,7 @@
 """Live update: a reflective object's map follows it while the artist moves, turns or scales it
 or edits its mesh (``scene.virtual_reflections.live_update``).
 
-Per change the data flows one way (docs/architecture.md):
+Per change the data flows one way (the map pipeline, pipeline.py):
 
     depsgraph_update_post  which reflective objects changed? (a set lookup per update; other
                            objects, images and selection changes are ignored)
@@ -10,7 +10,7 @@ Per change the data flows one way (docs/architecture.md):
       -> per map: the evaluated object's screen bounds (bounds.object_bounds) rounded to whole
          plate pixels; unchanged -> nothing (the engine's cached table is reused when an object
          comes back to where it was)
-      -> moving: a PREVIEW_WIDTH map from the plate reduced to about 1.5 x that width (small
+      -> moving: a MOVING_WIDTH map from the plate reduced to about 1.5 x that width (small
          table, small gather)
       -> resting for REST seconds: the full map (the scene's resolution, the whole plate), saved
          or marked for packing as Generate does.
@@ -30,16 +30,15 @@ from dataclasses import dataclass, field, replace
 
 import bpy
 
-from ..virtual_reflections import lookup_table
-from ..virtual_reflections.envmap import apply_table
+from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
-from . import bounds, compositor, generate, maps, previews, shading
+from . import maps, pipeline, plate, previews, shading
+from .choices import map_width
 
-PREVIEW_WIDTH = 256  # map width while the object moves
-PLATE_MARGIN = 1.5  # the reduced plate stays at least this many times the preview map's width
+MOVING_WIDTH = 256  # map width while the object moves
+PLATE_MARGIN = 1.5  # the reduced plate stays at least this many times the moving map's width
 REST = 0.3  # seconds without a change before the full map is built
-MAX_RATE = 60.0  # at most this many preview passes a second (leaves the viewport time to draw)
-WORLD = "World"
+MAX_RATE = 60.0  # at most this many moving passes a second (leaves the viewport time to draw)
 
 
 @dataclass
@@ -64,37 +63,18 @@ _state = _State()
 # --- what to rebuild -----------------------------------------------------------------------------
 
 
-def _targets(scene, names=None):
-    """{map image: [objects]} for the attached objects of ``scene`` (only those in ``names``,
-    and every object sharing the World map with one of them)."""
-    found, world = {}, []
-    for obj in scene.objects:
-        record = obj.get(shading.RECORD)
-        if record is None or obj.type not in generate.REFLECTABLE:
-            continue
-        if record.get("mode") == "WORLD":
-            world.append(obj)
-        elif (names is None or obj.name in names) and record.get("image") is not None:
-            found[record["image"]] = [obj]
-    if world and (names is None or any(o.name in names for o in world)):
-        image = bpy.data.images.get(maps.map_name(WORLD))
-        if image is not None:
-            found[image] = world
-    return found
-
-
 def _scene_key(scene):
     """What, besides the objects, shapes a map: the method's settings, the plate, the render."""
     s, r = scene.virtual_reflections, scene.render
-    plate = compositor.scene_plate(scene)
+    image = plate.scene_plate(scene)
     return (
         s.enlarge,
         s.border,
         s.front,
         s.triangles,
-        getattr(s, "method", "PAPER"),
+        s.method,
         s.resolution,
-        plate.name_full if plate is not None else None,
+        image.name_full if image is not None else None,
         r.resolution_x,
         r.resolution_y,
         r.resolution_percentage,
@@ -214,12 +194,12 @@ def _tick():
     return None
 
 
-def flush(scene=None, full=False, depsgraph=None) -> generate.Report:
+def flush(scene=None, full=False, depsgraph=None) -> pipeline.Report:
     """Rebuild now: the pending objects' maps small (``full`` False), or the resting maps (and
     any pending ones) at full size. Returns a Report: ``done`` the maps rebuilt, ``timings``
     per stage, ``warnings``. Tests and benchmarks call this directly instead of the timer."""
     scene = scene or bpy.data.scenes.get(_state.scene) or bpy.context.scene
-    report = generate.Report()
+    report = pipeline.Report()
     if depsgraph is None:
         depsgraph = bpy.context.evaluated_depsgraph_get()  # may call the handler: read after
     names = set(_state.pending)
@@ -244,106 +224,69 @@ def flush(scene=None, full=False, depsgraph=None) -> generate.Report:
 
 def _rebuild(scene, depsgraph, names, full, report):
     settings = scene.virtual_reflections
-    image = generate.camera_and_plate(scene)
-    t = time.perf_counter()
-    plate, _info = generate.plate_pixels(scene, image)
-    report.time("plate", time.perf_counter() - t)
-    targets = _targets(scene, names)
+    image = plate.require_plate(scene)
+    with report.timed("plate"):
+        pixels, _info = plate.pixels(scene, image)
+    targets = shading.reflecting(scene, names)
     if not targets:
         return
-    t = time.perf_counter()
-    projection = bounds.camera_projection(scene)
-    ph, pw = plate.shape[:2]
-    sx, sy = pw / projection.width, ph / projection.height
-    params = settings.params(generate._intrinsics(projection, sx, sy))
-    report.time("bounds", time.perf_counter() - t)
+    with report.timed("bounds"):
+        view = pipeline.view(scene, pixels.shape, depsgraph)
     save_dir = None
-    if full and settings.save_maps:
+    if full:
         try:
-            save_dir = generate._save_dir(settings)
+            save_dir = maps.save_folder(settings)
         except ValueError as exc:
             report.warnings.append(f"maps kept in memory: {exc}")
     for map_image, objs in targets.items():
-        t = time.perf_counter()
-        boxes, extent = {}, 0.0
-        for obj in objs:
-            try:
-                box = bounds.object_bounds(obj, depsgraph, scene, projection=projection)
-            except ValueError:
-                continue
-            if box.visible:
-                boxes[obj] = (box.x0 * sx, box.y0 * sy, box.x1 * sx, box.y1 * sy)
-                extent = max(extent, generate.screen_extent(box))
-        report.time("bounds", time.perf_counter() - t)
+        with report.timed("bounds"):
+            boxes, extents, _ = pipeline.object_boxes(view, scene, depsgraph, objs)
         if not boxes:
             continue  # off screen: keep the map it had
-        union = [f(b[k] for b in boxes.values()) for k, f in enumerate((min, min, max, max))]
-        rounded = tuple(float(round(v)) for v in union)
-        full_width = settings.map_width(extent)
-        base = (id(plate), rounded, params)
+        rounded = tuple(float(round(v)) for v in union_box(boxes.values()))
+        full_width = map_width(settings.resolution, max(extents.values()))
+        base = (id(pixels), rounded, view.params)
         built = _state.built.get(map_image.name)
         if built is not None and built[0] == base and (not full or built[1] == full_width):
             continue  # same rounded bounds: the map it has is right
-        width = full_width if full else min(PREVIEW_WIDTH, full_width)
-        source, box, shaped = plate, rounded, params
+        width = full_width if full else min(MOVING_WIDTH, full_width)
+        source, box, shaped = pixels, rounded, view.params
         if not full:
-            source, level = _reduced(plate, width)
+            source, level = _reduced(pixels, width)
             box = tuple(v / 2**level for v in rounded)
-            if level and params.intrinsics is not None:  # the camera-view method: plate pixels
-                shaped = replace(params, intrinsics=tuple(v / 2**level for v in params.intrinsics))
-        h, w = source.shape[:2]
-        t = time.perf_counter()
-        table = lookup_table(w, h, box, shaped, "latlong", width)
-        report.time("table", time.perf_counter() - t)
-        t = time.perf_counter()
-        env = apply_table(table, source)
-        report.time("gather", time.perf_counter() - t)
-        t = time.perf_counter()
-        for obj, b in boxes.items():
-            obj.virtual_reflections.bounds = b  # the panel's segmentation preview follows
-        if full:
-            maps.store_map(map_image.name, env, save_dir)
-            name = WORLD if _is_world(objs) else objs[0].name
-            report.warnings.extend(
-                generate.fit_warnings(name, table.segmentation, params.method == "paper")
-            )
-        else:
-            write_pixels(map_image, env)
-            _state.resting[map_image.name] = {o.name for o in objs}
-        map_image.update_tag()  # Cycles' rendered viewport reloads tagged images
-        report.time("image", time.perf_counter() - t)
+            if level and shaped.intrinsics is not None:  # the camera-view method: plate pixels
+                shaped = replace(shaped, intrinsics=tuple(v / 2**level for v in shaped.intrinsics))
+        world = shading.mode_of(objs[0]) == "WORLD"
+        name = ("World" if world else objs[0].name) if full else None
+        env, _ = pipeline.build_map(source, box, shaped, width, report, name)
+        with report.timed("image"):
+            for obj, b in boxes.items():
+                obj.virtual_reflections.bounds = b  # the panel's segmentation preview follows
+            if full:
+                maps.store_map(map_image.name, env, save_dir)
+            else:
+                maps.show_pixels(map_image, env)
+                _state.resting[map_image.name] = {o.name for o in objs}
+            map_image.update_tag()  # Cycles' rendered viewport reloads tagged images
         _state.built[map_image.name] = (base, width)
         report.done.append(map_image.name)
         previews.note_map(map_image, env)
 
 
-def _is_world(objs):
-    record = objs[0].get(shading.RECORD) if objs else None
-    return record is not None and record.get("mode") == "WORLD"
-
-
-def _reduced(plate, width):
-    """The plate box-filtered down to the coarsest mip level still PLATE_MARGIN x ``width``
+def _reduced(pixels, width):
+    """The pixels box-filtered down to the coarsest mip level still PLATE_MARGIN x ``width``
     wide, and that level; cached for the plate being dragged over."""
-    h, w = plate.shape[:2]
+    h, w = pixels.shape[:2]
     level = 0
     while w / 2 ** (level + 1) >= PLATE_MARGIN * width and level < 6:
         level += 1
     if level == 0:
-        return plate, 0
-    if _state.reduced[:2] != (id(plate), level):
+        return pixels, 0
+    if _state.reduced[:2] != (id(pixels), level):
         shapes = level_shapes(h, w, level + 1)
-        flat = build_pyramid(plate, level + 1, level)
-        _state.reduced = (id(plate), level, level_view(flat, shapes, level, level).copy())
+        flat = build_pyramid(pixels, level + 1, level)
+        _state.reduced = (id(pixels), level, level_view(flat, shapes, level, level).copy())
     return _state.reduced[2], level
-
-
-def write_pixels(image, env):
-    """The map into ``image`` (maps.write_pixels), then shown at once: the full pass, which
-    saves or packs it, comes later."""
-    maps.write_pixels(image, env)
-    image.update()
-    maps.touch(image)
 
 
 def _set_status(scene, report, full):

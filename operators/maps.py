@@ -1,9 +1,11 @@
-"""Environment maps as Blender images: created once per object, updated in place.
+"""Environment maps as Blender images: created once per object, updated in place, packed into
+the .blend or saved as files, removed with every other image the add-on made.
 
-Maps are float32 scene-linear Rec.709 lat-long images in the camera frame (see shading.py);
-Blender stores image rows bottom-up, the engine top row first, so rows are flipped here.
-Every image made here carries the custom property CREATED = "map", so removing reflections
-deletes only what the add-on created.
+Maps are float32 scene-linear Rec.709 lat-long images in the camera frame (shading.py,
+docs/conventions.md). Every map carries ``images.CREATED = "map"``. Where a map's pixels are
+kept is the scene's ``map_storage``: packed into the .blend when it is saved (`pack_pending`;
+packing encodes an EXR, so it happens once per save, not once per regeneration), or saved as
+EXR files into `maps_folder`.
 """
 
 import os
@@ -11,24 +13,20 @@ import os
 import bpy
 import numpy as np
 
-CREATED = "vr_created"
-NEEDS_PACK = "vr_needs_pack"
+from . import images
+from .choices import addon_preferences
+
+KIND = "map"  # images.CREATED value of maps
+NEEDS_PACK = "vr_needs_pack"  # on maps: pack again at the next save
 MAP_PREFIX = "VR Map "
-LINEAR = ("Linear Rec.709", "Linear", "Linear BT.709")
-
-
-def _set_linear(image):
-    names = {
-        item.identifier for item in image.colorspace_settings.bl_rna.properties["name"].enum_items
-    }
-    for name in LINEAR:
-        if name in names:
-            if image.colorspace_settings.name != name:
-                image.colorspace_settings.name = name
-            return
-
+WORLD_MAP = "VR World Map"  # the map shared by the objects in World mode (no object's name)
 
 _versions = {}  # image name -> how often its pixels were written this session (previews.py)
+
+
+def map_name(object_name: str) -> str:
+    """The name of an object's own map."""
+    return f"{MAP_PREFIX}{object_name}"
 
 
 def touch(image):
@@ -40,43 +38,42 @@ def version(image) -> int:
     return _versions.get(image.name_full, 0)
 
 
-def map_name(owner_name: str) -> str:
-    return f"{MAP_PREFIX}{owner_name}"
+def maps_folder(create=True) -> str:
+    """The folder saved maps go to (the preferences' choice). Raises ValueError (one line)
+    when that is "beside the .blend" and the file has not been saved yet."""
+    blend = bpy.data.filepath
+    if addon_preferences().map_folder == "USER":
+        stem = bpy.path.display_name_from_filepath(blend) if blend else "untitled"
+        try:
+            return bpy.utils.extension_path_user(
+                images.__package__.rpartition(".")[0],
+                path=os.path.join("maps", bpy.path.clean_name(stem)),
+                create=create,
+            )
+        except ValueError:
+            pass  # not installed as an extension (imported by a test or a script): beside it
+    if not blend:
+        raise ValueError(
+            "save the .blend first to save maps beside it (or pack them, or pick the "
+            "extension user folder in the preferences)"
+        )
+    return os.path.join(os.path.dirname(bpy.path.abspath(blend)), "vr_maps")
 
 
-def write_pixels(image, env: np.ndarray):
-    """Write an (H, W, 3) float32 linear map into ``image`` in place (resized if needed), and
-    nothing else: no file saved, no packing flag set."""
+def save_folder(settings):
+    """Where a scene's maps are saved: `maps_folder` when its ``map_storage`` is FILES, None
+    when they are packed. ValueError as `maps_folder`."""
+    return maps_folder() if settings.map_storage == "FILES" else None
+
+
+def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str = KIND):
+    """Write an (H, W, 3) float32 map into the image ``name`` (made if missing, updated in
+    place) and keep it: saved as EXR into ``save_dir`` when given, else packed into the .blend
+    at its next save. Returns the image. ValueError when an image of that name is not ours."""
     h, w = env.shape[:2]
-    if tuple(image.size) != (w, h):
-        if image.source == "GENERATED":
-            image.generated_width, image.generated_height = w, h
-        else:
-            image.scale(w, h)
-    rgba = np.ones((h, w, 4), dtype=np.float32)
-    rgba[..., :3] = env[::-1]  # Blender stores rows bottom-up
-    image.pixels.foreach_set(rgba.ravel())
-
-
-def store_map(name: str, env: np.ndarray, save_dir: str | None = None):
-    """Write a (H, W, 3) float32 map into the image `name` (made if missing, updated in place).
-
-    The image is packed into the .blend when it is saved (see pack_pending), or saved as EXR
-    into `save_dir` when given.
-    Returns the image.
-    """
-    h, w = env.shape[:2]
-    image = bpy.data.images.get(name)
-    if image is not None and image.get(CREATED) != "map":
-        raise ValueError(f"an image named {name!r} exists and is not ours; rename it")
-    if image is None:
-        image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
-        image[CREATED] = "map"
-        image.use_fake_user = True  # kept with the .blend even while no material uses it
-    # Setting the colour space (even to its current value) regenerates a generated image's
-    # buffer at its generated size, so it comes before any resize, and only when needed.
-    _set_linear(image)
-    write_pixels(image, env)
+    image = images.own_image(name, w, h, kind)
+    image.use_fake_user = True  # kept with the .blend even while no material uses it
+    images.write_pixels(image, env)
     image.file_format = "OPEN_EXR"
     if save_dir:
         os.makedirs(save_dir, exist_ok=True)
@@ -92,11 +89,30 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None):
     return image
 
 
+def show_pixels(image, env: np.ndarray):
+    """Write a map's new pixels into its image at once, nothing else (the full pass, which
+    saves or packs it, comes later: live.py)."""
+    images.write_pixels(image, env)
+    image.update()
+    touch(image)
+
+
+def overwrite(image, env: np.ndarray):
+    """Write an (H, W, 3) map of the image's own size into it, in place, changing nothing but
+    pixels (no save, no datablock made), so it may run on a render thread; a packed map is
+    marked to be packed again at the next save. ValueError when the size differs."""
+    h, w = env.shape[:2]
+    if tuple(image.size) != (w, h):
+        raise ValueError(f"map '{image.name}' has another size; generate again")
+    show_pixels(image, env)
+    if image.get(NEEDS_PACK) is False:
+        image[NEEDS_PACK] = True
+
+
 def pack_pending():
-    """Pack every map regenerated since the last save. Packing encodes an EXR (~20 ms for
-    1024 x 512), so it happens once per save rather than once per regeneration."""
+    """Pack every map (or composite) regenerated since the last save."""
     for image in bpy.data.images:
-        if image.get(CREATED) == "map" and image.get(NEEDS_PACK):
+        if images.created(image) is not None and image.get(NEEDS_PACK):
             image.pack()
             image[NEEDS_PACK] = False
 
@@ -104,6 +120,12 @@ def pack_pending():
 @bpy.app.handlers.persistent
 def _pack_before_save(*_args):
     pack_pending()
+
+
+def remove_maps():
+    """Delete every map (and segmentation picture, composite) the add-on made; returns how
+    many."""
+    return images.remove_created(("map", "overlay", "composite"))
 
 
 def register():
@@ -114,11 +136,3 @@ def register():
 def unregister():
     if _pack_before_save in bpy.app.handlers.save_pre:
         bpy.app.handlers.save_pre.remove(_pack_before_save)
-
-
-def remove_maps():
-    """Delete every map (and segmentation picture) the add-on created; returns how many."""
-    ours = [image for image in bpy.data.images if image.get(CREATED) in ("map", "overlay")]
-    for image in ours:
-        bpy.data.images.remove(image)
-    return len(ours)

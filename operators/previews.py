@@ -13,12 +13,14 @@ as they are, without the scene's view transform), clipped to [0, 1].
 """
 
 import bpy
+import bpy.utils.previews
 import numpy as np
 
 from ..virtual_reflections import segment
 from ..virtual_reflections.colour import linear_to_srgb
+from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.overlay import draw_segmentation
-from . import compositor, generate, maps, shading
+from . import images, maps, pipeline, plate, shading
 
 PREVIEW_WIDTH = 256  # pixels across a preview image (maps: 256 x 128)
 OVERLAY = "overlay"  # the CREATED value of the full-size segmentation picture
@@ -78,45 +80,19 @@ def combined_preview(name, top_name, bottom_name):
     return _set_preview(name, canvas)
 
 
-def image_pixels(image):
-    """(H, W, 3) float32 pixels of a Blender image, top row first."""
-    w, h = image.size
-    buf = np.empty(w * h * 4, np.float32)
-    image.pixels.foreach_get(buf)
-    return buf.reshape(h, w, 4)[::-1, :, :3]
-
-
-# --- what the active object shows --------------------------------------------------------------
-
-
-def map_image(obj):
-    """The map ``obj`` reflects (its own, or the shared World map), or None."""
-    record = obj.get(shading.RECORD) if obj is not None else None
-    if record is None:
-        return None
-    if record.get("mode") == "WORLD":
-        return bpy.data.images.get(maps.map_name("World"))
-    image = record.get("image")
-    return image if isinstance(image, bpy.types.Image) else None
+# --- what the active object shows -----------------------------------------------------------------
 
 
 def map_objects(scene, obj):
-    """The objects whose bounds made ``obj``'s map: itself, or every World-mode object."""
-    record = obj.get(shading.RECORD)
-    if record is not None and record.get("mode") == "WORLD":
-        return [
-            o for o in scene.objects if (o.get(shading.RECORD) or {}).get("mode") == "WORLD"
-        ] or [obj]
-    return [obj]
+    """The objects whose bounds made ``obj``'s map: every object reflecting the same map."""
+    image = shading.map_of(obj)
+    return shading.reflecting(scene).get(image, [obj]) if image is not None else [obj]
 
 
 def plate_box(scene, obj):
     """The box the map was made from, in plate pixels (x0, y0, x1, y1), or None."""
     boxes = [tuple(o.virtual_reflections.bounds) for o in map_objects(scene, obj)]
-    boxes = [b for b in boxes if b[2] > b[0] and b[3] > b[1]]
-    if not boxes:
-        return None
-    return tuple(f(b[k] for b in boxes) for k, f in enumerate((min, min, max, max)))
+    return union_box(b for b in boxes if b[2] > b[0] and b[3] > b[1])
 
 
 def note_map(image, env):
@@ -128,29 +104,32 @@ def map_preview(image, scene=None):
     """The preview of a map image, remade when its pixels changed (written by Generate or
     live update; with Update Every Frame on, also on every frame)."""
     name = "map:" + image.name_full
-    every_frame = scene is not None and getattr(scene.virtual_reflections, "sequence", False)
+    every_frame = scene is not None and scene.virtual_reflections.sequence
     key = (maps.version(image), tuple(image.size), scene.frame_current if every_frame else None)
     preview = _collection.get(name)
     if preview is not None and _keys.get(name) == key:
         return preview
     noted = _noted.pop(image.name_full, None)
-    small = noted[1] if noted is not None and noted[0] == key[0] else shrink(image_pixels(image))
+    if noted is not None and noted[0] == key[0]:
+        small = noted[1]
+    else:
+        small = shrink(images.read_pixels(image)[..., :3])
     _keys[name] = key
     return _set_preview(name, small)
 
 
 def _plate(scene):
     """(key, (h, w, 3) full linear plate, (h, w, 3) small plate) of the scene's plate."""
-    image = compositor.scene_plate(scene)
+    image = plate.scene_plate(scene)
     if image is None:
         raise ValueError("no plate")
-    plate, _info = generate.plate_pixels(scene, image)
-    key = (image.name_full, plate.shape, id(plate))
+    pixels, _info = plate.pixels(scene, image)
+    key = (image.name_full, pixels.shape, id(pixels))
     small = _small_plates.get(key)
     if small is None:
         _small_plates.clear()
-        small = _small_plates[key] = shrink(plate)
-    return key, plate, small
+        small = _small_plates[key] = shrink(pixels)
+    return key, pixels, small
 
 
 def segmentation(scene, obj, plate_shape):
@@ -159,18 +138,18 @@ def segmentation(scene, obj, plate_shape):
     if box is None:
         return None
     settings = scene.virtual_reflections
-    return segment(plate_shape[1], plate_shape[0], box, settings.params())
+    return segment(plate_shape[1], plate_shape[0], box, pipeline.params(settings))
 
 
-def overlay_pixels(settings, box, plate, full_shape):
-    """(h, w, 3) linear: ``plate`` with the paper's segmentation around ``box`` (plate pixels
-    of a plate ``full_shape`` (H, W, ...)) drawn over it, scaled to the plate given (a small
-    one for the preview)."""
-    h, w = plate.shape[:2]
+def overlay_pixels(settings, box, pixels, full_shape):
+    """(h, w, 3) linear: ``pixels`` (a plate) with the paper's segmentation around ``box``
+    (plate pixels of a plate ``full_shape`` (H, W, ...)) drawn over it, scaled to the pixels
+    given (a small one for the preview)."""
+    h, w = pixels.shape[:2]
     scale = (w / full_shape[1], h / full_shape[0])
-    params = settings.params()
+    params = pipeline.params(settings)
     seg = segment(w, h, tuple(v * scale[k % 2] for k, v in enumerate(box)), params)
-    return draw_segmentation(plate, seg, params.triangles)
+    return draw_segmentation(pixels, seg, params.triangles)
 
 
 def overlay_preview(scene, obj):
@@ -194,7 +173,7 @@ def for_object(scene, obj):
     """{"map": ImagePreview | None, "overlay": ImagePreview | None, "both": the two stacked
     (what the panel draws) | None, "advice": [str], "image": the map image | None}; never
     raises."""
-    image = map_image(obj)
+    image = shading.map_of(obj)
     out = {"map": None, "overlay": None, "both": None, "advice": [], "image": image}
     if _collection is None or image is None:
         return out
@@ -205,136 +184,43 @@ def for_object(scene, obj):
             out["both"] = combined_preview(
                 "both:" + obj.name_full, "overlay:" + obj.name_full, "map:" + image.name_full
             )
-        plate = compositor.scene_plate(scene)
-        if plate is not None and out["overlay"] is not None:
-            seg = segmentation(scene, obj, tuple(plate.size)[::-1])
-            paper = getattr(scene.virtual_reflections, "method", "PAPER") == "PAPER"
-            name = "World" if len(map_objects(scene, obj)) > 1 else obj.name
-            out["advice"] = generate.fit_warnings(name, seg, paper)
+        image = plate.scene_plate(scene)
+        if image is not None and out["overlay"] is not None:
+            seg = segmentation(scene, obj, tuple(image.size)[::-1])
+            paper = scene.virtual_reflections.method == "PAPER"
+            name = "World" if shading.mode_of(obj) == "WORLD" else obj.name
+            out["advice"] = pipeline.fit_warnings(name, seg, paper)
     except (ValueError, RuntimeError) as exc:  # a missing plate file: say so, draw on
         out["advice"] = [str(exc)]
     return out
 
 
-# --- full size in an Image Editor --------------------------------------------------------------
+# --- full size in an Image Editor (ops.py opens it) -----------------------------------------------
 
 
 def overlay_image(scene, obj):
     """The Blender image "VR Segmentation <object>": the whole plate with the segmentation drawn
     over it (linear float; made or updated; removed with the maps)."""
-    _key, plate, _small = _plate(scene)
+    _key, full, _small = _plate(scene)
     box = plate_box(scene, obj)
     if box is None:
         raise ValueError(f"{obj.name} has no reflection yet: generate first")
-    pixels = overlay_pixels(scene.virtual_reflections, box, plate, plate.shape)
+    pixels = overlay_pixels(scene.virtual_reflections, box, full, full.shape)
     h, w = pixels.shape[:2]
-    name = OVERLAY_PREFIX + obj.name
-    image = bpy.data.images.get(name)
-    if image is not None and image.get(maps.CREATED) != OVERLAY:
-        raise ValueError(f"an image named {name!r} exists and is not ours; rename it")
-    if image is None:
-        image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
-        image[maps.CREATED] = OVERLAY
-    maps._set_linear(image)
-    if tuple(image.size) != (w, h):
-        image.generated_width, image.generated_height = w, h
-    rgba = np.ones((h, w, 4), np.float32)
-    rgba[..., :3] = pixels[::-1]
-    image.pixels.foreach_set(rgba.ravel())
+    image = images.own_image(OVERLAY_PREFIX + obj.name, w, h, OVERLAY)
+    images.write_pixels(image, pixels)
     image.update()
     return image
 
 
-def show_image(context, image):
-    """Show ``image`` in an Image Editor: one in this window if there is one, else a new
-    window (as View Render does). Returns the area, or None when there is no window."""
-    screen = context.screen if context.window is not None else None
-    if screen is None:
-        return None
-    for area in screen.areas:
-        if area.type == "IMAGE_EDITOR":
-            area.spaces.active.image = image
-            area.tag_redraw()
-            return area
-    wm = context.window_manager
-    before = {w.as_pointer() for w in wm.windows}
-    bpy.ops.wm.window_new()
-    window = next((w for w in wm.windows if w.as_pointer() not in before), None)
-    if window is None:
-        return None
-    area = max(window.screen.areas, key=lambda a: a.width * a.height)
-    area.type = "IMAGE_EDITOR"
-    area.spaces.active.image = image
-    return area
-
-
-class VR_OT_show_image(bpy.types.Operator):
-    """Open the picture in an Image Editor (this window's, or a new window)"""
-
-    bl_idname = "vr.show_image"
-    bl_label = "Open in Image Editor"
-    bl_options = {"REGISTER"}
-
-    kind: bpy.props.EnumProperty(
-        items=(
-            ("MAP", "Map", "The object's environment map (lat-long, camera frame)"),
-            ("SEGMENTATION", "Segmentation", "The plate cut into the paper's regions"),
-        ),
-        default="MAP",
-    )
-    object: bpy.props.StringProperty(name="Object", description="Default: the active object")
-
-    @classmethod
-    def description(cls, context, properties):
-        if properties.kind == "SEGMENTATION":
-            return "Open the plate with the paper's regions around this object in an Image Editor"
-        return "Open this object's environment map in an Image Editor"
-
-    @classmethod
-    def poll(cls, context):
-        if context.window is None or bpy.app.background:
-            cls.poll_message_set("Needs Blender's window")
-            return False
-        if map_image(context.active_object) is None:
-            cls.poll_message_set("The active object has no virtual reflection: generate first")
-            return False
-        return True
-
-    def execute(self, context):
-        obj = context.scene.objects.get(self.object) if self.object else context.active_object
-        if obj is None or map_image(obj) is None:
-            self.report({"WARNING"}, "No virtual reflection on that object: generate first")
-            return {"CANCELLED"}
-        try:
-            image = (
-                overlay_image(context.scene, obj) if self.kind == "SEGMENTATION" else map_image(obj)
-            )
-        except ValueError as exc:
-            self.report({"WARNING"}, str(exc))
-            return {"CANCELLED"}
-        if show_image(context, image) is None:
-            self.report({"WARNING"}, "No window to open an Image Editor in")
-            return {"CANCELLED"}
-        return {"FINISHED"}
-
-
-classes = (VR_OT_show_image,)
-_register, _unregister = bpy.utils.register_classes_factory(classes)
-
-
 def register():
     global _collection
-    import bpy.utils.previews
-
-    _register()
     if _collection is None:
         _collection = bpy.utils.previews.new()
 
 
 def unregister():
     global _collection
-    import bpy.utils.previews
-
     if _collection is not None:
         bpy.utils.previews.remove(_collection)
         _collection = None
@@ -342,4 +228,3 @@ def unregister():
     _pixels.clear()
     _noted.clear()
     _small_plates.clear()
-    _unregister()

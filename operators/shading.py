@@ -39,13 +39,16 @@ import math
 
 import bpy
 
+from .images import CREATED
+
 LOOKUP_GROUP = "VR Camera LatLong"
 LATLONG_GROUP = "VR LatLong"
 REFLECTION_GROUP = "VR Reflection"
 WORLD_NAME = "VR World"
 MODES = ("REPLACE", "MODULATE", "MIX", "WORLD")
+REFLECTABLE = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}  # object types with a surface
+ENVIRONMENT_NODE = "VR Environment"  # the world's map node
 
-CREATED = "vr_created"  # on every datablock this module made; value says what it is
 RECORD = "vr_shading"  # on objects: what attach() replaced
 WORLD_RECORD = "vr_world"  # on scenes: what attach_world() replaced
 _GROUP_VERSION = 1  # bump when the lookup groups' contents change; old ones are rebuilt
@@ -302,6 +305,41 @@ def is_attached(obj):
     return RECORD in obj.keys()
 
 
+def mode_of(obj) -> str | None:
+    """The combine mode of ``obj``'s reflection ("REPLACE", ..., "WORLD"), or None."""
+    record = obj.get(RECORD) if obj is not None else None
+    return record.get("mode") if record is not None else None
+
+
+def map_of(obj):
+    """The map image ``obj`` reflects (its own, or in World mode the world's), or None."""
+    record = obj.get(RECORD) if obj is not None else None
+    if record is None:
+        return None
+    image = record.get("image")
+    if image is None and record.get("mode") == "WORLD":  # recorded before maps were kept here
+        world = record.get("world")
+        node = world.node_tree.nodes.get(ENVIRONMENT_NODE) if world is not None else None
+        image = node.image if node is not None else None
+    return image if isinstance(image, bpy.types.Image) else None
+
+
+def reflecting(scene, names=None) -> dict:
+    """{map image: [objects]}: the objects of ``scene`` with a reflection attached, by the map
+    they reflect (World mode: one shared map for all its objects). With ``names``, only maps
+    of which at least one object is named there."""
+    found = {}
+    for obj in scene.objects:
+        if obj.type not in REFLECTABLE:
+            continue
+        image = map_of(obj)
+        if image is not None:
+            found.setdefault(image, []).append(obj)
+    if names is not None:
+        found = {k: v for k, v in found.items() if any(o.name in names for o in v)}
+    return found
+
+
 def attach(obj, image, mode, strength=1.0, ior=1.45):
     """Put ``image`` (a camera-frame lat-long map) on every material slot of ``obj``.
 
@@ -327,7 +365,7 @@ def attach(obj, image, mode, strength=1.0, ior=1.45):
         if is_attached(obj):
             detach(obj)
         world = attach_world(scene, image, strength)
-        obj[RECORD] = {"mode": "WORLD", "scene": scene, "world": world}
+        obj[RECORD] = {"mode": "WORLD", "scene": scene, "world": world, "image": image}
         return
 
     if obj.data is None or not hasattr(obj.data, "materials"):
@@ -574,7 +612,7 @@ def attach_world(scene, image, strength=1.0):
     if record is not None:
         world = record.get("world")
         if world is not None and scene.world == world:
-            world.node_tree.nodes["VR Environment"].image = image
+            world.node_tree.nodes[ENVIRONMENT_NODE].image = image
             world.node_tree.nodes["Background"].inputs["Strength"].default_value = strength
             return world
         detach_world(scene)  # the user assigned another world meanwhile: start over
@@ -615,7 +653,7 @@ def attach_world(scene, image, strength=1.0):
     latlong = _node(nodes, "ShaderNodeGroup", "VR LatLong", (0, 0))
     latlong.node_tree = ensure_latlong_group()
     links.new(camera.outputs["Vector"], latlong.inputs["Camera Vector"])
-    tex = _node(nodes, "ShaderNodeTexEnvironment", "VR Environment", (200, 0))
+    tex = _node(nodes, "ShaderNodeTexEnvironment", ENVIRONMENT_NODE, (200, 0))
     tex.image = image
     tex.interpolation = "Linear"
     links.new(latlong.outputs["Equirect"], tex.inputs["Vector"])
@@ -660,61 +698,3 @@ def detach_world(scene):
     if world is not None and world.get(CREATED) == "world" and not in_use:
         bpy.data.worlds.remove(world)  # also clears objects' WORLD records pointing at it
     _remove_unused_groups()
-
-
-# --- comparing node trees (tests, and checking that nothing changed) --------------------------
-
-_SKIPPED_NODE_PROPS = {"rna_type", "select", "dimensions"}  # UI state, not shading
-
-
-def node_tree_signature(tree):
-    """A comparable description of a node tree: per node (by name) its type, settings, socket
-    default values and referenced datablocks; and every link. Equal signatures mean the trees
-    render the same."""
-    if tree is None:
-        return None
-    nodes = {}
-    for node in tree.nodes:
-        props = {}
-        for prop in node.bl_rna.properties:
-            key = prop.identifier
-            if key in _SKIPPED_NODE_PROPS or prop.type == "COLLECTION":
-                continue
-            value = getattr(node, key, None)
-            props[key] = _plain(value)
-        nodes[node.name] = {
-            "type": node.bl_idname,
-            "props": props,
-            "inputs": [
-                (s.identifier, _plain(getattr(s, "default_value", None))) for s in node.inputs
-            ],
-            "outputs": [
-                (s.identifier, _plain(getattr(s, "default_value", None))) for s in node.outputs
-            ],
-        }
-    links = sorted(
-        (
-            link.from_node.name,
-            link.from_socket.identifier,
-            link.to_node.name,
-            link.to_socket.identifier,
-            link.is_muted,
-        )
-        for link in tree.links
-    )
-    return {"nodes": nodes, "links": links}
-
-
-def _plain(value):
-    if isinstance(value, bpy.types.ID):
-        return ("ID", type(value).__name__, value.name)
-    if isinstance(value, bpy.types.bpy_struct):
-        return None  # nested structs (e.g. texture mapping) are not compared
-    if isinstance(value, (str, int, float, bool)) or value is None:
-        return value
-    if isinstance(value, (set, frozenset)):  # enum flags
-        return tuple(sorted(value))
-    try:
-        return tuple(_plain(v) for v in value)
-    except TypeError:
-        return repr(value)

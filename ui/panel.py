@@ -9,7 +9,7 @@ import textwrap
 
 import bpy
 
-from ..operators import generate, live, previews
+from ..operators import live, maps, plate, previews, sequence, shading
 from . import presets
 
 
@@ -41,10 +41,10 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         box.label(text="Plate", icon="IMAGE_BACKGROUND")
         box.template_ID(settings, "plate_image", open="image.open")
         if settings.plate_image is None:
-            plate = generate.compositor.scene_plate(scene)
+            image = plate.scene_plate(scene)
             box.label(
-                text=f"Using camera background: {plate.name}"
-                if plate
+                text=f"Using camera background: {image.name}"
+                if image
                 else "No plate: open one or give the camera a background image",
                 icon="INFO",
             )
@@ -82,7 +82,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
     @classmethod
     def poll(cls, context):
         obj = context.active_object
-        return obj is not None and obj.type in generate.REFLECTABLE
+        return obj is not None and obj.type in shading.REFLECTABLE
 
     def draw_header(self, context):
         self.layout.label(text=context.active_object.name, icon="OBJECT_DATA")
@@ -110,7 +110,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
             layout.template_icon(icon_value=shown["both"].icon_id, scale=scale)
         else:
             layout.label(text="No plate to show", icon="ERROR")
-        if getattr(scene.virtual_reflections, "method", "PAPER") != "PAPER":
+        if scene.virtual_reflections.method != "PAPER":
             layout.label(text="Regions: the paper's, for reference", icon="INFO")
         for line in shown["advice"]:
             col = layout.column(align=True)
@@ -130,8 +130,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         layout.use_property_decorate = False
         settings = context.scene.virtual_reflections
         col = layout.column()
-        if hasattr(settings, "method"):
-            col.prop(settings, "method")
+        col.prop(settings, "method")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")
@@ -141,7 +140,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         col.prop(settings, "resolution")
         if settings.resolution == "AUTO":
             obj = context.active_object
-            image = previews.map_image(obj)
+            image = shading.map_of(obj)
             if image is not None:
                 col.label(text=f"{image.size[0]} x {image.size[1]} for {obj.name}")
 
@@ -179,20 +178,20 @@ class VR_PT_output(_Tab, bpy.types.Panel):
         layout.use_property_decorate = False
         settings = context.scene.virtual_reflections
         col = layout.column()
-        col.prop(settings, "save_maps")
-        if settings.save_maps:
-            from .. import preferences
-
+        col.prop(settings, "map_storage")
+        if settings.map_storage == "FILES":
             try:
-                where = preferences.maps_folder(create=False)
+                where = maps.maps_folder(create=False)
             except ValueError as exc:
                 where = str(exc)
             col.label(text=where, icon="FILE_FOLDER")
-        if hasattr(settings, "sequence"):  # operators/sequence.py: plates that are sequences
-            col.prop(settings, "sequence", text="Update Every Frame")
-            sub = col.column()
-            sub.active = settings.sequence
-            sub.prop(settings, "smoothing")
+        col.prop(settings, "sequence", text="Update Every Frame")
+        sub = col.column()
+        sub.active = settings.sequence
+        sub.prop(settings, "smoothing")
+        line = sequence.status(context.scene) if settings.sequence else ""
+        if line:  # the last frame's update, or why it was skipped (e.g. a render unlocked)
+            _wrapped(layout, line, context, icon="ERROR" if "skipped" in line else "TIME")
 
 
 classes = (VR_PT_main, VR_PT_object, VR_PT_method, VR_PT_shading, VR_PT_output)

@@ -7,6 +7,8 @@ look changes at once. The panel shows the preset whose values are current as pre
 
 import bpy
 
+from ..operators import generate, shading
+
 # name -> (label, icon, description, {setting: value})
 PRESETS = {
     "CHROME": (
@@ -73,8 +75,6 @@ class VR_OT_apply_preset(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        from ..operators import generate, shading
-
         settings = context.scene.virtual_reflections
         apply(settings, self.preset)
         label = PRESETS[self.preset][0]
@@ -85,7 +85,9 @@ class VR_OT_apply_preset(bpy.types.Operator):
             self.report({"INFO"}, f"{label}: set for the next Generate")
             return {"FINISHED"}
         try:
-            report = generate.generate(context, attached)
+            report = generate.generate(
+                context.scene, context.evaluated_depsgraph_get(), attached
+            )
         except ValueError as exc:
             self.report({"WARNING"}, f"{label} set; could not generate again: {exc}")
             return {"FINISHED"}

@@ -15,40 +15,19 @@ from bpy.props import (
     StringProperty,
 )
 
-COMBINE_ITEMS = (
-    (
-        "REPLACE",
-        "Replace",
-        "Chrome: the object shows the environment map (the paper's replace mode)",
-    ),
-    ("MODULATE", "Modulate", "Material colour times the environment (the paper's modulate mode)"),
-    ("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
-    ("WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"),
-)
-FRONT_ITEMS = (
-    (
-        "CONTINUOUS",
-        "Continuous",
-        "The front face in the continuous limit (n -> infinity): no seams",
-    ),
-    ("TRIANGLES", "Triangles", "The paper's n triangles cut from the outer ring"),
-)
-RESOLUTION_ITEMS = (
-    (
-        "AUTO",
-        "Auto",
-        "From the object's size on screen: about 3 map pixels (pi) per pixel it spans, rounded "
-        "up to the next size below (256 to 4096)",
-    ),
-) + tuple(
-    (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
-    for w in (256, 512, 1024, 2048, 4096)
+from ..operators import live, sequence
+from ..operators.choices import (
+    COMBINE_ITEMS,
+    FRONT_ITEMS,
+    MAP_STORAGE_ITEMS,
+    METHOD_ITEMS,
+    RESOLUTION_ITEMS,
 )
 
 
 def _shaping_changed(settings, context):
     """Settings that shape a map changed: live update (operators/live.py) follows."""
-    _live().on_shaping_changed(settings, context)
+    live.on_shaping_changed(settings, context)
 
 
 class VR_SceneSettings(bpy.types.PropertyGroup):
@@ -79,24 +58,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         subtype="PERCENTAGE",
     )
     method: EnumProperty(
-        update=_shaping_changed,
-        name="Method",
-        items=(
-            (
-                "CAMERA",
-                "Camera View",
-                "Place the plate exactly by the camera's field of view; where the photo saw "
-                "nothing, extend its edges into the sky, ground and sides it suggests (the most "
-                "accurate on the ground truth, docs/accuracy.md)",
-            ),
-            (
-                "PAPER",
-                "Paper (2004)",
-                "Ropinski et al.: the plate cut into regions around the object's bounds and "
-                "folded onto a cube (neighbouring objects show on the sides facing them)",
-            ),
-        ),
-        default="CAMERA",
+        update=_shaping_changed, name="Method", items=METHOD_ITEMS, default="CAMERA"
     )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed
@@ -128,18 +90,18 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         min=1.0,
         max=4.0,
     )
-    save_maps: BoolProperty(
-        name="Save Maps as Files",
-        description="Save maps as EXR files (in a vr_maps folder beside the .blend, or where the "
-        "extension's preferences say) instead of packing them into the .blend",
-        default=False,
+    map_storage: EnumProperty(
+        name="Maps",
+        items=MAP_STORAGE_ITEMS,
+        default="PACK",
+        description="Where the maps' pixels are kept: packed into the .blend, or saved as files",
     )
     live_update: BoolProperty(
         name="Live Update",
         description="Rebuild a reflective object's map while it moves, turns, scales or its mesh "
         "is edited: a quick small map during the drag, the full one once it rests",
         default=False,
-        update=lambda settings, context: _live().on_setting_changed(settings, context),
+        update=lambda settings, context: live.on_setting_changed(settings, context),
     )
     defaults_applied: BoolProperty(
         name="Preference Defaults Applied",
@@ -154,7 +116,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         "rendered frame, from that frame's plate (image sequences, movies) and bounds; locks the "
         "interface during renders",
         default=False,
-        update=lambda settings, context: _sequence().on_setting_changed(settings, context),
+        update=lambda settings, context: sequence.on_setting_changed(settings, context),
     )
     smoothing: FloatProperty(
         name="Bounds Smoothing",
@@ -165,40 +127,6 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         max=0.95,
         subtype="FACTOR",
     )
-
-    def params(self, intrinsics=None):
-        """The engine's Params for these settings; `intrinsics` (fx, fy, cx, cy) in plate
-        pixels select the camera-view method when it is chosen (else the paper's)."""
-        from ..virtual_reflections import Params
-
-        n = 0 if self.front == "CONTINUOUS" else 4 * max(1, round(self.triangles / 4))
-        camera = self.method == "CAMERA" and intrinsics is not None
-        return Params(
-            enlarge=self.enlarge / 100.0,
-            border=self.border / 100.0,
-            triangles=n,
-            method="frustum" if camera else "paper",
-            intrinsics=tuple(intrinsics) if camera else None,
-        )
-
-    def map_width(self, extent=None):
-        """The lat-long map width for an object ``extent`` render pixels wide or high on
-        screen: the chosen resolution, or with Auto one from the extent (1024 without one)."""
-        from ..operators import generate
-
-        return generate.map_width(self.resolution, extent)
-
-
-def _live():
-    from ..operators import live
-
-    return live
-
-
-def _sequence():
-    from ..operators import sequence
-
-    return sequence
 
 
 class VR_ObjectSettings(bpy.types.PropertyGroup):

@@ -24,7 +24,7 @@ MAP_EXTENSIONS = (".exr", ".hdr", ".png", ".jpg", ".jpeg", ".tif", ".tiff")
 REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 
 
-class ImageError(Exception):
+class ImageError(ValueError):
     """A plate or map file that cannot be read or written; the message is one line."""
 
 
@@ -174,6 +174,74 @@ def _write_oiio(path: str, pixels: np.ndarray, ext: str) -> None:
     if ext in (".jpg", ".jpeg"):
         spec.attribute("Compression", "jpeg:92")
     ok = out.open(path, spec) and out.write_image(np.ascontiguousarray(data))
+    ok = out.close() and ok
+    if not ok:
+        raise ImageError(f"cannot write {path}: {_first_line(out.geterror())}")
+
+
+def read_channels(path: str) -> dict:
+    """Every channel of an image file by name, every part of a multi-part EXR included:
+    {name: (H, W) float32}, top row first, values as stored (renders: scene-linear)."""
+    oiio = _oiio()
+    if not os.path.isfile(path):
+        raise ImageError(f"image not found: {path}")
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        raise ImageError(f"cannot read {path}: {_first_line(oiio.geterror())}")
+    channels = {}
+    try:
+        part = 0
+        while image.seek_subimage(part, 0):  # Blender 5.x writes one part per pass
+            spec = image.spec()
+            pixels = image.read_image(part, 0, 0, spec.nchannels, "float")
+            if pixels is None or image.has_error:
+                raise ImageError(f"cannot read {path}: {_first_line(image.geterror())}")
+            pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+            for c, name in enumerate(spec.channelnames):
+                channels[name] = pixels[..., c]
+            part += 1
+    finally:
+        image.close()
+    return channels
+
+
+def read_rgba(path: str) -> np.ndarray:
+    """(H, W, 4) float32 pixels of an image file, top row first, values as stored (an 8-bit
+    file's sRGB codes / 255, an EXR's scene-linear values); alpha 1 where the file has none."""
+    oiio = _oiio()
+    if not os.path.isfile(path):
+        raise ImageError(f"image not found: {path}")
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        raise ImageError(f"cannot read {path}: {_first_line(oiio.geterror())}")
+    try:
+        spec = image.spec()
+        pixels = image.read_image(0, 0, 0, min(spec.nchannels, 4), "float")
+        if pixels is None or image.has_error:
+            raise ImageError(f"cannot read {path}: {_first_line(image.geterror())}")
+    finally:
+        image.close()
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, -1)
+    rgba = np.ones((spec.height, spec.width, 4), np.float32)
+    if pixels.shape[2] < 3:  # grey (and alpha)
+        rgba[..., :3] = pixels[..., :1]
+        if pixels.shape[2] == 2:
+            rgba[..., 3] = pixels[..., 1]
+    else:
+        rgba[..., : pixels.shape[2]] = pixels
+    return rgba
+
+
+def write_rgba(path: str, rgba: np.ndarray) -> None:
+    """Write an (H, W, 4) float32 premultiplied render as a scene-linear float RGBA EXR (ZIP)."""
+    oiio = _oiio()
+    h, w = rgba.shape[:2]
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        raise ImageError(f"cannot write {path}: {_first_line(oiio.geterror())}")
+    spec = oiio.ImageSpec(w, h, 4, "float")
+    spec.attribute("compression", "zip")
+    ok = out.open(path, spec) and out.write_image(np.ascontiguousarray(rgba, np.float32))
     ok = out.close() and ok
     if not ok:
         raise ImageError(f"cannot write {path}: {_first_line(out.geterror())}")

@@ -58,3 +58,70 @@ def ramp_plate(width=96, height=64, name="Plate"):
     px[:, :, 1] = np.linspace(0, 1, width)[None, :]
     plate.pixels.foreach_set(px.ravel())
     return plate
+
+
+def project_points(bounds, points_world, scene, camera_obj=None):
+    """(N, 3) world points -> ((N, 2) float64 plate pixels (px, py), (N,) bool in front), through
+    ``bounds`` (operators/bounds.py) and the scene camera (or ``camera_obj``). In front means
+    beyond the near plane (depth >= clip_start); rows not in front are NaN."""
+    projection = bounds.camera_projection(scene, camera_obj)
+    cam = projection.to_camera(np.asarray(points_world, dtype=np.float64).reshape(-1, 3).T)
+    in_front = -cam[2] >= projection.clip_start
+    pixels = np.full((len(in_front), 2), np.nan)
+    pixels[in_front] = np.stack(projection.to_pixels(*projection.frame_coords(cam[:, in_front])), 1)
+    return pixels, in_front
+
+
+_SKIPPED_NODE_PROPS = {"rna_type", "select", "dimensions"}  # UI state, not shading
+
+
+def node_tree_signature(tree):
+    """A comparable description of a node tree: per node (by name) its type, settings, socket
+    default values and referenced datablocks; and every link. Equal signatures mean the trees
+    render the same."""
+    if tree is None:
+        return None
+    nodes = {}
+    for node in tree.nodes:
+        props = {}
+        for prop in node.bl_rna.properties:
+            key = prop.identifier
+            if key in _SKIPPED_NODE_PROPS or prop.type == "COLLECTION":
+                continue
+            props[key] = _plain(getattr(node, key, None))
+        nodes[node.name] = {
+            "type": node.bl_idname,
+            "props": props,
+            "inputs": [
+                (s.identifier, _plain(getattr(s, "default_value", None))) for s in node.inputs
+            ],
+            "outputs": [
+                (s.identifier, _plain(getattr(s, "default_value", None))) for s in node.outputs
+            ],
+        }
+    links = sorted(
+        (
+            link.from_node.name,
+            link.from_socket.identifier,
+            link.to_node.name,
+            link.to_socket.identifier,
+            link.is_muted,
+        )
+        for link in tree.links
+    )
+    return {"nodes": nodes, "links": links}
+
+
+def _plain(value):
+    if isinstance(value, bpy.types.ID):
+        return ("ID", type(value).__name__, value.name)
+    if isinstance(value, bpy.types.bpy_struct):
+        return None  # nested structs (e.g. texture mapping) are not compared
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    if isinstance(value, (set, frozenset)):  # enum flags
+        return tuple(sorted(value))
+    try:
+        return tuple(_plain(v) for v in value)
+    except TypeError:
+        return repr(value)

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from shots import project_points  # noqa: E402
 
 bpy = pytest.importorskip("bpy")
 
@@ -158,7 +159,7 @@ def test_frame_corners_land_on_plate_corners(bounds, name):
     camera = set_up_case(scene, CASES[name])
     corners = world_points(camera, [tuple(c) for c in camera.data.view_frame(scene=scene)])
 
-    pixels, in_front = bounds.project_points(corners, scene)
+    pixels, in_front = project_points(bounds, corners, scene)
 
     w, h = bounds.camera_projection(scene).width, bounds.camera_projection(scene).height
     # view_frame's order: top-right, bottom-right, bottom-left, top-left.
@@ -170,8 +171,8 @@ def test_frame_corners_land_on_plate_corners(bounds, name):
 def test_points_behind_the_near_plane_are_masked(bounds):
     scene = bpy.context.scene
     add_camera(scene, clip_start=0.5)
-    pixels, in_front = bounds.project_points(
-        np.array([(0, 0, -2), (0, 0, -0.25), (0, 0, 3)]), scene
+    pixels, in_front = project_points(
+        bounds, np.array([(0, 0, -2), (0, 0, -0.25), (0, 0, 3)]), scene
     )
     assert in_front.tolist() == [True, False, False]
     assert pixels[0] == pytest.approx((960, 540))
@@ -304,7 +305,7 @@ def test_errors_say_what_is_wrong(bounds):
     with pytest.raises(ValueError, match="has no camera"):
         bounds.object_bounds(cube, depsgraph(), scene)
     with pytest.raises(ValueError, match="has no camera"):
-        bounds.project_points(np.zeros((1, 3)), scene)
+        project_points(bounds, np.zeros((1, 3)), scene)
 
     camera = add_camera(scene)
     empty = add_object(scene, None)

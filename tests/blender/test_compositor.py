@@ -1,4 +1,5 @@
-"""operators/compositor.py: plate pixels, the scene's plate, compositor setup/undo, alpha-over.
+"""operators/compositor.py and plate.py: plate pixels, the scene's plate, compositor set-up and
+undo, alpha-over (engine composite.py).
 
 Plates are written with OpenImageIO (top row first) into tmp_path. Colour: arrays are
 scene-linear Rec.709 float32; 8-bit files are sRGB-encoded. The compositor differs between
@@ -23,6 +24,17 @@ GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # Blende
 def comp(addon):
     """operators/compositor.py, imported from the extension package on a fresh empty file."""
     return importlib.import_module(addon.__name__ + ".operators.compositor")
+
+
+@pytest.fixture
+def plates(addon):
+    """operators/plate.py: the scene's plate and its pixels."""
+    return importlib.import_module(addon.__name__ + ".operators.plate")
+
+
+@pytest.fixture
+def composite(addon):
+    return importlib.import_module(addon.__name__ + ".virtual_reflections.composite")
 
 
 @pytest.fixture
@@ -66,13 +78,13 @@ def gradient_plate(width=6, height=4):
 # --- plate_image_pixels --------------------------------------------------------------------------
 
 
-def test_png_is_srgb_decoded_and_top_row_first(comp, colour, tmp_path):
+def test_png_is_srgb_decoded_and_top_row_first(comp, plates, colour, tmp_path):
     pixels = np.zeros((2, 3, 3), np.uint8)
     pixels[0] = 128  # top row of the file
     pixels[1] = 255
     pixels[0, 0] = (255, 0, 64)  # top-left marker
     image = bpy.data.images.load(str(write_image(tmp_path / "p8.png", pixels, "uint8")))
-    plate, info = comp.plate_image_pixels(image)
+    plate, info = plates.image_pixels(image)
     assert plate.shape == (2, 3, 3) and plate.dtype == np.float32
     assert plate[0, 1:] == pytest.approx(0.2158, abs=5e-4)  # 128 -> sRGB EOTF
     assert np.allclose(plate[0, 1:], colour.srgb_to_linear(128 / 255), atol=1e-6)
@@ -81,72 +93,72 @@ def test_png_is_srgb_decoded_and_top_row_first(comp, colour, tmp_path):
     assert "sRGB" in info and "3x2" in info
 
 
-def test_exr_is_used_as_is(comp, tmp_path):
+def test_exr_is_used_as_is(comp, plates, tmp_path):
     pixels = gradient_plate()
     pixels[1, 2] = (-0.5, 7.0, 1000.0)  # scene-linear values outside [0, 1] survive
     image = bpy.data.images.load(str(write_image(tmp_path / "p.exr", pixels, "float")))
-    plate, info = comp.plate_image_pixels(image)
+    plate, info = plates.image_pixels(image)
     assert plate.shape == pixels.shape
     assert np.array_equal(plate, pixels)  # top row first, no colour change
     assert "scene-linear" in info
 
 
-def test_sixteen_bit_png_is_linear_float(comp, colour, tmp_path):
+def test_sixteen_bit_png_is_linear_float(comp, plates, colour, tmp_path):
     pixels = np.full((2, 2, 3), 32768, np.uint16)
     image = bpy.data.images.load(str(write_image(tmp_path / "p16.png", pixels, "uint16")))
     assert image.is_float  # Blender loads 16-bit PNGs into a linearised float buffer
-    plate, _ = comp.plate_image_pixels(image)
+    plate, _ = plates.image_pixels(image)
     assert np.allclose(plate, colour.srgb_to_linear(32768 / 65535), atol=1e-4)
 
 
-def test_non_color_images_are_used_as_is(comp, tmp_path):
+def test_non_color_images_are_used_as_is(comp, plates, tmp_path):
     pixels = np.full((2, 2, 3), 128, np.uint8)
     image = bpy.data.images.load(str(write_image(tmp_path / "data.png", pixels, "uint8")))
     image.colorspace_settings.name = "Non-Color"
-    plate, info = comp.plate_image_pixels(image)
+    plate, info = plates.image_pixels(image)
     assert np.allclose(plate, 128 / 255)
     assert "Non-Color" in info and "as is" in info
 
     data = bpy.data.images.new("Data", 2, 2, float_buffer=True)
     data.colorspace_settings.name = "Non-Color"
     data.pixels.foreach_set(np.full(16, 0.5, np.float32))
-    plate, info = comp.plate_image_pixels(data)
+    plate, info = plates.image_pixels(data)
     assert np.allclose(plate, 0.5) and "Non-Color" in info
 
 
-def test_missing_file_names_the_file(comp, tmp_path):
+def test_missing_file_names_the_file(comp, plates, tmp_path):
     path = write_image(tmp_path / "gone.png", np.zeros((2, 2, 3), np.uint8), "uint8")
     image = bpy.data.images.load(str(path))
     path.unlink()
     image.reload()
     with pytest.raises(ValueError, match="file not found: .*gone.png"):
-        comp.plate_image_pixels(image)
+        plates.image_pixels(image)
 
     never = bpy.data.images.new("Never", 2, 2)
     never.source = "FILE"
     never.filepath = str(tmp_path / "never_existed.exr")
     with pytest.raises(ValueError, match="never_existed.exr"):
-        comp.plate_image_pixels(never)
+        plates.image_pixels(never)
 
 
-def test_unloadable_file(comp, tmp_path):
+def test_unloadable_file(comp, plates, tmp_path):
     path = tmp_path / "damaged.png"
     path.write_bytes(b"not a png at all")
     image = bpy.data.images.load(str(path))
     with pytest.raises(ValueError, match="could not be loaded from .*damaged.png"):
-        comp.plate_image_pixels(image)
+        plates.image_pixels(image)
 
 
-def test_no_image_and_empty_image(comp):
+def test_no_image_and_empty_image(comp, plates):
     with pytest.raises(ValueError, match="No plate image"):
-        comp.plate_image_pixels(None)
+        plates.image_pixels(None)
     empty = bpy.data.images.new("Empty", 4, 4)
     empty.source = "FILE"  # a file image without a file: no pixels at all
     with pytest.raises(ValueError, match=r"'Empty' has no pixels \(0x0\)"):
-        comp.plate_image_pixels(empty)
+        plates.image_pixels(empty)
 
 
-def test_nan_and_inf_are_replaced_and_counted(comp):
+def test_nan_and_inf_are_replaced_and_counted(comp, plates):
     image = bpy.data.images.new("Bad", 3, 2, float_buffer=True)
     values = np.full((2, 3, 4), 0.5, np.float32)
     values[0, 0, 0] = np.nan
@@ -154,7 +166,7 @@ def test_nan_and_inf_are_replaced_and_counted(comp):
     values[1, 1, 2] = -np.inf
     values[0, 1, 3] = np.nan  # alpha: ignored, not counted
     image.pixels.foreach_set(values.ravel())
-    plate, info = comp.plate_image_pixels(image)
+    plate, info = plates.image_pixels(image)
     assert np.isfinite(plate).all()
     assert "3 NaN/Inf values replaced" in info
     # Blender's row 0 is the bottom: the NaN at (bottom, left) is at the last row here.
@@ -164,27 +176,27 @@ def test_nan_and_inf_are_replaced_and_counted(comp):
 # --- scene_plate ---------------------------------------------------------------------------------
 
 
-def test_scene_plate_prefers_the_property_then_the_camera_background(comp):
+def test_scene_plate_prefers_the_property_then_the_camera_background(comp, plates):
     scene = bpy.context.scene
-    assert comp.scene_plate(scene) is None  # no camera
+    assert plates.scene_plate(scene) is None  # no camera
     camera = add_camera(scene)
-    assert comp.scene_plate(scene) is None  # no background images
+    assert plates.scene_plate(scene) is None  # no background images
     hidden, shown = bpy.data.images.new("Hidden", 2, 2), bpy.data.images.new("Shown", 2, 2)
     entry = camera.data.background_images.new()
     entry.image, entry.show_background_image = hidden, False
     entry = camera.data.background_images.new()
     entry.image = shown
-    assert comp.scene_plate(scene) == shown
+    assert plates.scene_plate(scene) == shown
 
     chosen = bpy.data.images.new("Chosen", 2, 2)
     with_property = types.SimpleNamespace(
         virtual_reflections=types.SimpleNamespace(plate_image=chosen), camera=camera
     )
-    assert comp.scene_plate(with_property) == chosen
+    assert plates.scene_plate(with_property) == chosen
     unset = types.SimpleNamespace(
         virtual_reflections=types.SimpleNamespace(plate_image=None), camera=camera
     )
-    assert comp.scene_plate(unset) == shown
+    assert plates.scene_plate(unset) == shown
 
 
 # --- setup_from_plate / undo ---------------------------------------------------------------------
@@ -425,16 +437,16 @@ def test_setup_rejects_missing_plates(comp, tmp_path):
 # --- composite_over_plate, and Blender's compositor agreeing with it ----------------------------
 
 
-def test_composite_over_plate_numbers(comp):
+def test_composite_over_plate_numbers(comp, composite):
     render = np.array([[[0.5, 0.25, 0.0, 0.5], [0, 0, 0, 0], [2.0, 1.0, 0.5, 1.0]]], np.float32)
     plate = np.array([[[1.0, 1.0, 1.0], [0.2, 0.3, 0.4], [9.0, 9.0, 9.0]]], np.float32)
-    out = comp.composite_over_plate(render, plate)
+    out = composite.over(render, plate)
     assert out.dtype == np.float32
     assert np.allclose(out, [[[1.0, 0.75, 0.5], [0.2, 0.3, 0.4], [2.0, 1.0, 0.5]]])
     with pytest.raises(ValueError, match="RGBA"):
-        comp.composite_over_plate(render[..., :3], plate)
+        composite.over(render[..., :3], plate)
     with pytest.raises(ValueError, match="plate"):
-        comp.composite_over_plate(render, plate[:, :2])
+        composite.over(render, plate[:, :2])
 
 
 def build_render_scene(scene):
@@ -474,7 +486,9 @@ def render_to(scene, path, compositing):
 
 @pytest.mark.parametrize("plate_format", ["exr", "png"])
 @pytest.mark.parametrize("user_compositor", [False, True], ids=["fresh", "user-compositor"])
-def test_blender_composite_matches_numpy(comp, tmp_path, plate_format, user_compositor):
+def test_blender_composite_matches_numpy(
+    comp, composite, plates, tmp_path, plate_format, user_compositor
+):
     scene, image = plate_scene(tmp_path)
     if plate_format == "png":  # 8-bit sRGB: Blender's Image node decodes it through OCIO
         encoded = np.clip(gradient_plate(64, 36), 0, 1) ** (1 / 2.2)
@@ -486,7 +500,7 @@ def test_blender_composite_matches_numpy(comp, tmp_path, plate_format, user_comp
     if user_compositor:
         add_user_compositor(scene)
     comp.setup_from_plate(scene, image)
-    plate, _ = comp.plate_image_pixels(image)
+    plate, _ = plates.image_pixels(image)
 
     raw = render_to(scene, tmp_path / "raw.exr", compositing=False)  # Cycles is deterministic
     composite = render_to(scene, tmp_path / "composite.exr", compositing=True)
@@ -495,7 +509,7 @@ def test_blender_composite_matches_numpy(comp, tmp_path, plate_format, user_comp
     assert alpha.min() == 0.0 and alpha.max() == 1.0 and ((alpha > 0) & (alpha < 1)).any()
     if user_compositor:  # the user's Exposure node (+1 stop) runs underneath the plate
         raw = raw * np.array([2.0, 2.0, 2.0, 1.0], np.float32)
-    expected = comp.composite_over_plate(raw, plate)
+    expected = composite.over(raw, plate)
     tolerance = 1e-4 if plate_format == "png" else 1e-5  # OCIO's sRGB vs the exact EOTF
     assert np.abs(composite[..., :3] - expected).max() < tolerance
     assert np.abs(composite[..., :3] - plate).max() > 0.1  # the plane is really there

@@ -3,7 +3,10 @@
 import bpy
 import numpy as np
 import pytest
-from shots import add_camera
+from shots import (
+    add_camera,
+    node_tree_signature,  # noqa: E402
+)
 
 
 def make_scene(width=64, height=48):
@@ -60,9 +63,8 @@ def render(scene, tmp_path, name="r"):
 
 
 def signature(mat):
-    from vr_addon_under_test.operators import shading
 
-    return shading.node_tree_signature(mat.node_tree) if mat and mat.node_tree else None
+    return node_tree_signature(mat.node_tree) if mat and mat.node_tree else None
 
 
 def test_register_unregister_leaves_nothing(addon_module):
@@ -194,14 +196,14 @@ def test_poll_messages_and_bad_input(addon, tmp_path):
     scene.virtual_reflections.plate_image = missing
     sig = signature(ball.data.materials[0])
     with pytest.raises(ValueError, match="gone.png"):
-        generate.generate(ctx, [ball])
+        generate.generate(ctx.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert not generate.anything_attached() and signature(ball.data.materials[0]) == sig
     with pytest.raises(RuntimeError, match="gone.png"):  # the operator reports an ERROR
         bpy.ops.vr.generate()
     # An object entirely off-screen: a warning, skipped.
     scene.virtual_reflections.plate_image = red_blue_plate()
     ball.location = (0, 0, 50)
-    report = generate.generate(ctx, [ball])
+    report = generate.generate(ctx.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert not report.done and "outside the camera view" in report.warnings[0]
 
 
@@ -221,7 +223,9 @@ def test_linked_objects_are_refused_and_left_alone(addon, tmp_path):
     scene.virtual_reflections.resolution = "256"
     from vr_addon_under_test.operators import generate
 
-    report = generate.generate(bpy.context, [linked, local])
+    report = generate.generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [linked, local]
+    )
     assert report.done == ["Local Ball"]
     assert any("linked" in w and "Linked Ball" in w for w in report.warnings)
     assert linked.material_slots[0].link == "DATA" and "VR Map Linked Ball" not in bpy.data.images
@@ -243,7 +247,7 @@ def test_camera_method_places_the_plate_where_the_camera_saw_it(addon):
     plate.pixels.foreach_set(pixels[::-1].ravel())
     settings = scene.virtual_reflections
     settings.plate_image, settings.method, settings.resolution = plate, "CAMERA", "1024"
-    report = generate.generate(bpy.context, [ball])
+    report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert report.done == ["Ball"]
     image = bpy.data.images["VR Map Ball"]
     w, h = image.size

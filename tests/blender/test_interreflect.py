@@ -92,8 +92,9 @@ def two_objects():
 
 def run(interreflect, objects, passes, **kwargs):
     scene = bpy.context.scene
-    plate = interreflect.generate.plate_pixels(scene, scene.virtual_reflections.plate_image)[0]
-    return interreflect.render_passes(bpy.context, objects, plate, passes, **kwargs)
+    plate = interreflect.generate.plate.pixels(scene)[0]
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    return interreflect.render_passes(scene, depsgraph, objects, plate, passes, **kwargs)
 
 
 def test_each_pass_changes_the_image_less(interreflect):
@@ -148,7 +149,7 @@ def test_an_object_never_reflects_itself(interreflect):
     assert redness("VR Map Red Ball") < 0.01  # its map: only the grey plate
     assert reports[1].change == 0.0  # so pass 2 is pass 1 again, exactly
     # Without the mask its own red image is in its map, and the image changes.
-    _, _, unmasked = run(interreflect, [ball], 2, _self_mask=False)
+    _, _, unmasked = run(interreflect, [ball], 2, self_mask=False)
     assert redness("VR Map Red Ball") > 0.2
     assert unmasked[1].change > 1e-3
 
@@ -223,7 +224,13 @@ def test_bad_input(interreflect):
         with pytest.raises(ValueError, match="passes"):
             run(interreflect, [ball], passes)
     with pytest.raises(ValueError, match="plate"):
-        interreflect.render_passes(bpy.context, [ball], np.zeros((4, 4, 3), np.float32), 2)
+        interreflect.render_passes(
+            bpy.context.scene,
+            bpy.context.evaluated_depsgraph_get(),
+            [ball],
+            np.zeros((4, 4, 3), np.float32),
+            2,
+        )
     scene.virtual_reflections.combine = "WORLD"
     with pytest.raises(ValueError, match="World"):
         run(interreflect, [ball], 2)
@@ -240,7 +247,9 @@ def test_operator_shows_the_composite(interreflect):
         obj.select_set(True)
     assert hasattr(bpy.types, "VR_OT_render_passes")  # registered with the add-on
     assert bpy.ops.vr.render_passes(passes=2) == {"FINISHED"}
-    image = bpy.data.images[interreflect.COMPOSITE_IMAGE]
+    from vr_addon_under_test.operators import ops
+
+    image = bpy.data.images[ops.COMPOSITE_IMAGE]
     assert tuple(image.size) == (W, H)
     report = bpy.context.scene.virtual_reflections.last_report
     assert report.startswith("2 pass(es)") and "change" in report

@@ -27,7 +27,7 @@ def make_shot(resolution="512"):
     ball.name = "Ball"
     ball.data.materials.append(bpy.data.materials.new("Paint"))
     generate = addon_part("operators.generate")
-    report = generate.generate(bpy.context, [ball])
+    report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert report.done == ["Ball"], report.warnings
     bpy.context.view_layer.update()
     return scene, ball, bpy.data.images["VR Map Ball"]
@@ -74,7 +74,7 @@ def test_moved_object_gets_a_small_map_then_the_full_one(live, shot):
 
     report = live.flush(scene, full=False)
     assert report.done == ["VR Map Ball"] and not live.pending()
-    assert tuple(image.size) == (live.PREVIEW_WIDTH, live.PREVIEW_WIDTH // 2)  # while moving
+    assert tuple(image.size) == (live.MOVING_WIDTH, live.MOVING_WIDTH // 2)  # while moving
     assert maps.version(image) > version and live.resting() == {"VR Map Ball"}
     assert tuple(ball.virtual_reflections.bounds)[0] > 0
 
@@ -149,11 +149,13 @@ def test_world_mode_follows_the_union(live):
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(2.0, 0, 0))
     other = bpy.context.active_object
     scene.virtual_reflections.combine = "WORLD"
-    addon_part("operators.generate").generate(bpy.context, [ball, other])
+    addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball, other]
+    )
     scene.virtual_reflections.live_update = True
     other.location.z += 1.0
     bpy.context.view_layer.update()
-    assert live.flush(scene, full=True).done == ["VR Map World"]
+    assert live.flush(scene, full=True).done == ["VR World Map"]
 
 
 def test_waits_while_a_render_runs(live, shot, monkeypatch):

@@ -26,7 +26,9 @@ def make_shot(resolution="256", radius=1.0, location=(0.0, 0.0, 0.0), generate=T
     ball.name = "Ball"
     ball.data.materials.append(bpy.data.materials.new("Paint"))
     if generate:
-        report = addon_part("operators.generate").generate(bpy.context, [ball])
+        report = addon_part("operators.generate").generate(
+            bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+        )
         assert report.done == ["Ball"], report.warnings
     return scene, ball
 
@@ -86,7 +88,9 @@ def test_previews_follow_the_map(addon):
     ball.location.x -= 2.4
     bpy.context.view_layer.update()
     before = preview_pixels(previews.for_object(scene, ball)["map"]).copy()
-    addon_part("operators.generate").generate(bpy.context, [ball])
+    addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
     after = preview_pixels(previews.for_object(scene, ball)["map"])
     assert np.abs(after - before).max() > 0.05
 
@@ -147,40 +151,45 @@ def test_preset_changes_the_look_of_objects_that_reflect(addon):
 
 
 def test_auto_width_from_the_size_on_screen(addon):
-    generate = addon_part("operators.generate")
-    assert generate.auto_width(10) == 256  # pi x 10 -> 32, raised to the floor
-    assert generate.auto_width(100) == 512  # pi x 100 = 314 -> 512
-    assert generate.auto_width(400) == 2048  # pi x 400 = 1257 -> 2048
-    assert generate.auto_width(1e5) == 4096
-    assert generate.map_width("512", 700) == 512
-    assert generate.map_width("AUTO") == 1024
+    choices = addon_part("operators.choices")
+    auto_map_width = addon_part("virtual_reflections.mapsize").auto_map_width
+    assert auto_map_width(10) == 256  # pi x 10 -> 32, raised to the floor
+    assert auto_map_width(100) == 512  # pi x 100 = 314 -> 512
+    assert auto_map_width(400) == 2048  # pi x 400 = 1257 -> 2048
+    assert auto_map_width(1e5) == 4096
+    assert choices.map_width("512", 700) == 512
+    assert choices.map_width("AUTO") == 1024
     scene = bpy.context.scene
     scene.virtual_reflections.resolution = "AUTO"
-    assert scene.virtual_reflections.map_width(200) == 1024
+    assert choices.map_width(scene.virtual_reflections.resolution, 200) == 1024
 
 
 def test_auto_resolution_generates_a_map_sized_for_the_object(addon):
     scene, ball = make_shot(resolution="AUTO", generate=False)
     # The ball spans 14.3 degrees of the camera's 39.6: 36 % of the render's width.
     scene.render.resolution_x, scene.render.resolution_y = 192, 128  # ~69 px: pi x 69 -> 256
-    report = addon_part("operators.generate").generate(bpy.context, [ball])
+    report = addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
     assert report.done == ["Ball"]
     assert tuple(bpy.data.images["VR Map Ball"].size) == (256, 128)
     scene.render.resolution_x, scene.render.resolution_y = 960, 640  # ~345 px: 1084 -> 2048
-    addon_part("operators.generate").generate(bpy.context, [ball])
+    addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
     assert tuple(bpy.data.images["VR Map Ball"].size) == (2048, 1024)
 
 
 def test_warnings_near_the_border_and_for_a_huge_object(addon):
     generate = addon_part("operators.generate")
     scene, ball = make_shot(location=(3.2, 0.0, 0.0), generate=False)  # at the right edge
-    report = generate.generate(bpy.context, [ball])
+    report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert report.done == ["Ball"]  # a warning, not an error
     assert any("Ball is so close to the plate's border" in w for w in report.warnings)
     ball.location = (0.0, 0.0, 0.0)
     ball.scale = (3.5, 3.5, 3.5)
     bpy.context.view_layer.update()
-    report = generate.generate(bpy.context, [ball])
+    report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball])
     assert report.done == ["Ball"]
     assert any("covers" in w and "little is left" in w for w in report.warnings)
     advice = addon_part("operators.previews").for_object(scene, ball)["advice"]
@@ -196,17 +205,17 @@ def test_preferences_fall_back_to_defaults_when_not_an_enabled_addon(addon):
     assert bpy.context.preferences.addons.get(PACKAGE) is None
     assert preferences.get() is preferences.DEFAULTS
     assert preferences.VR_AddonPreferences.bl_idname == PACKAGE
-    assert preferences.DEFAULTS.resolution == "AUTO" and preferences.DEFAULTS.pack_maps
+    assert preferences.DEFAULTS.resolution == "AUTO" and preferences.DEFAULTS.map_storage == "PACK"
 
 
 def test_new_files_take_the_preferred_defaults(addon, monkeypatch):
     preferences = addon_part("preferences")
     monkeypatch.setattr(preferences.DEFAULTS, "combine", "MIX")
-    monkeypatch.setattr(preferences.DEFAULTS, "pack_maps", False)
+    monkeypatch.setattr(preferences.DEFAULTS, "map_storage", "FILES")
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)  # File > New
     settings = bpy.context.scene.virtual_reflections
     assert settings.combine == "MIX" and settings.resolution == "AUTO"
-    assert settings.save_maps and settings.defaults_applied
+    assert settings.map_storage == "FILES" and settings.defaults_applied
 
 
 def test_a_scene_with_reflections_keeps_its_settings_on_load(addon, tmp_path, monkeypatch):
@@ -221,19 +230,22 @@ def test_a_scene_with_reflections_keeps_its_settings_on_load(addon, tmp_path, mo
 
 def test_saved_maps_folder(addon, tmp_path, monkeypatch):
     preferences = addon_part("preferences")
+    maps = addon_part("operators.maps")
     with pytest.raises(ValueError, match="save the .blend first"):
-        preferences.maps_folder()
+        maps.maps_folder()
     # The user folder needs an installed extension; loaded the test way it falls back.
     monkeypatch.setattr(preferences.DEFAULTS, "map_folder", "USER")
     with pytest.raises(ValueError, match="save the .blend first"):
-        preferences.maps_folder()
+        maps.maps_folder()
     make_shot(generate=False)
     path = tmp_path / "shot.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
-    assert preferences.maps_folder() == str(tmp_path / "vr_maps")
+    assert maps.maps_folder() == str(tmp_path / "vr_maps")
     scene = bpy.context.scene
-    scene.virtual_reflections.save_maps = True
+    scene.virtual_reflections.map_storage = "FILES"
     ball = bpy.data.objects["Ball"]
-    report = addon_part("operators.generate").generate(bpy.context, [ball])
+    report = addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
     assert report.done == ["Ball"]
     assert [p.name for p in (tmp_path / "vr_maps").iterdir()] == ["VR_Map_Ball.exr"]

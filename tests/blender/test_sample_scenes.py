@@ -13,6 +13,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from shots import project_points  # noqa: E402
 
 from virtual_reflections import panorama
 
@@ -83,7 +84,7 @@ def test_scene_is_built_over_the_plate(addon, scenes, kind, plate):
         assert obj.material_slots and all(slot.material for slot in obj.material_slots)
         corners = np.array([obj.matrix_world @ v.co for v in obj.data.vertices])
         assert corners[:, 2].min() == pytest.approx(-height, abs=1e-4)
-        pixel, in_front = bounds.project_points(np.array(obj.location), scene)
+        pixel, in_front = project_points(bounds, np.array(obj.location), scene)
         assert in_front[0]
         np.testing.assert_allclose(pixel[0], (fx * TINY[0], fy * TINY[1]), atol=1e-3)
         box = bounds.object_bounds(obj, bpy.context.evaluated_depsgraph_get(), scene)
@@ -117,11 +118,13 @@ def test_generate_makes_a_map_per_object(addon, scenes, kind):
     generate = submodule(addon, "operators.generate")
     maps = submodule(addon, "operators.maps")
     shading = submodule(addon, "operators.shading")
-    report = generate.generate(bpy.context, built.objects)
+    report = generate.generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), built.objects
+    )
     assert sorted(report.done) == sorted(o.name for o in built.objects), report.warnings
     for obj in built.objects:
         image = bpy.data.images.get(maps.map_name(obj.name))
-        assert image is not None and image.get(maps.CREATED) == "map"
+        assert image is not None and image.get("vr_created") == maps.KIND
         assert image.size[:] == (256, 128)
         assert shading.is_attached(obj)
         assert all(slot.link == "OBJECT" for slot in obj.material_slots)

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from sequence_shots import COLOURS, build_scene, mean_rgb, read, write_movie, write_plates
 
+from virtual_reflections import frames
+
 
 def module(addon, name):
     return importlib.import_module(f"{addon.__name__}.operators.{name}")
@@ -18,16 +20,10 @@ def seq(addon):
     return module(addon, "sequence")
 
 
-class _Context:
-    def __init__(self, scene):
-        self.scene = scene
-
-    def evaluated_depsgraph_get(self):
-        return bpy.context.evaluated_depsgraph_get()
-
-
 def _generate(addon, scene, objects):
-    report = module(addon, "generate").generate(_Context(scene), objects)
+    report = module(addon, "generate").generate(
+        scene, bpy.context.evaluated_depsgraph_get(), objects
+    )
     assert report.done, report.warnings
     return report
 
@@ -46,7 +42,7 @@ def live(addon, seq, tmp_path):
     module(addon, "compositor").setup_from_plate(scene, image)
     scene.frame_set(1)
     _generate(addon, scene, [sphere])
-    seq.enable(scene)
+    scene.virtual_reflections.sequence = True
     return scene, sphere, bpy.data.images[f"VR Map {sphere.name}"]
 
 
@@ -58,22 +54,22 @@ def _dominant(rgb):
 
 
 def test_parse_frames(seq):
-    assert seq.parse_frames("1-5") == [1, 2, 3, 4, 5]
-    assert seq.parse_frames("1-10x3") == [1, 4, 7, 10]
-    assert seq.parse_frames("5") == [5]
-    assert seq.parse_frames("7-9,1,3,3") == [1, 3, 7, 8, 9]
-    assert seq.parse_frames("-2-1") == [-2, -1, 0, 1]
+    assert frames.parse_frames("1-5") == [1, 2, 3, 4, 5]
+    assert frames.parse_frames("1-10x3") == [1, 4, 7, 10]
+    assert frames.parse_frames("5") == [5]
+    assert frames.parse_frames("7-9,1,3,3") == [1, 3, 7, 8, 9]
+    assert frames.parse_frames("-2-1") == [-2, -1, 0, 1]
     for bad in ("", "a", "3-1", "1-5x0", "1--", "1-3,", "1.5"):
         with pytest.raises(ValueError, match="frame range"):
-            seq.parse_frames(bad)
+            frames.parse_frames(bad)
 
 
 def test_paths_of_frames(seq, tmp_path):
-    assert seq.pattern_path("/p/plate.####.exr", 12) == "/p/plate.0012.exr"
-    assert seq.pattern_path("/p/plate.%04d.jpg", 7) == "/p/plate.0007.jpg"
-    assert seq.pattern_path("/p/v2/plate_#.png", 123) == "/p/v2/plate_123.png"
-    assert seq.is_pattern("a.####.exr") and seq.is_pattern("a.%04d.exr")
-    assert not seq.is_pattern("a.0001.exr") and seq.is_movie_path("clip.MOV")
+    assert frames.pattern_path("/p/plate.####.exr", 12) == "/p/plate.0012.exr"
+    assert frames.pattern_path("/p/plate.%04d.jpg", 7) == "/p/plate.0007.jpg"
+    assert frames.pattern_path("/p/v2/plate_#.png", 123) == "/p/v2/plate_123.png"
+    assert frames.is_pattern("a.####.exr") and frames.is_pattern("a.%04d.exr")
+    assert not frames.is_pattern("a.0001.exr") and frames.is_movie_path("clip.MOV")
     # Blender's own rule, through an image user on a camera background.
     plates = write_plates(tmp_path)
     image = bpy.data.images.load(str(plates[0]))
@@ -83,16 +79,16 @@ def test_paths_of_frames(seq, tmp_path):
     entry.image = image
     for n in (1, 2, 17, 12345):
         entry.image_user.frame_current = n
-        assert seq.sequence_path(str(plates[0]), n) == image.filepath_from_user(
+        assert frames.sequence_path(str(plates[0]), n) == image.filepath_from_user(
             image_user=entry.image_user
         )
 
 
 def test_user_frame_follows_blender(seq):
-    assert seq.user_frame(7) == 7  # no frame range set up: the scene frame
-    assert [seq.user_frame(f, 1, 3) for f in (0, 1, 3, 5)] == [0, 1, 3, 3]
-    assert [seq.user_frame(f, 10, 3, 100) for f in (10, 12)] == [101, 103]
-    assert [seq.user_frame(f, 1, 3, cyclic=True) for f in (1, 3, 4, 7)] == [1, 3, 1, 1]
+    assert frames.user_frame(7) == 7  # no frame range set up: the scene frame
+    assert [frames.user_frame(f, 1, 3) for f in (0, 1, 3, 5)] == [0, 1, 3, 3]
+    assert [frames.user_frame(f, 10, 3, 100) for f in (10, 12)] == [101, 103]
+    assert [frames.user_frame(f, 1, 3, cyclic=True) for f in (1, 3, 4, 7)] == [1, 3, 1, 1]
 
 
 def test_bounds_filter_smooths_and_rounds(seq):
@@ -159,7 +155,7 @@ def test_movie_plate(addon, seq, tmp_path):
     module(addon, "compositor").setup_from_plate(scene, image)
     scene.frame_set(1)
     _generate(addon, scene, [sphere])
-    seq.enable(scene)
+    scene.virtual_reflections.sequence = True
     cached = len(bpy.data.images)
     for frame in (1, 2, 3):
         scene.frame_set(frame)
@@ -186,7 +182,7 @@ def test_smoothing_reduces_jitter_and_keeps_tables(live, seq, addon):
     """A sphere jittering by about a pixel (tracking noise): raw bounds move every
     frame; smoothed and rounded ones move less, and their tables come from the cache."""
     scene, sphere, image = live
-    seq.enable(scene, False)  # this test steps the frames itself
+    scene.virtual_reflections.sequence = False  # this test steps the frames itself
     edit = bpy.context.preferences.edit
     interpolation = edit.keyframe_new_interpolation_type
     edit.keyframe_new_interpolation_type = "CONSTANT"
@@ -197,7 +193,7 @@ def test_smoothing_reduces_jitter_and_keeps_tables(live, seq, addon):
             sphere.keyframe_insert("location", index=0, frame=frame)
     finally:
         edit.keyframe_new_interpolation_type = interpolation
-    plate = seq.frame_plate(scene, 1)  # one plate for all 30 frames: only the bounds move
+    plate = module(addon, "plate").frame(scene, 1)  # one plate for all frames: only bounds move
     results = {}
     lookup_table = importlib.import_module(f"{addon.__name__}.virtual_reflections").lookup_table
     for smoothing in (0.0, 0.8):
@@ -207,7 +203,7 @@ def test_smoothing_reduces_jitter_and_keeps_tables(live, seq, addon):
         for frame in range(1, 31):
             scene.frame_set(frame)
             depsgraph = bpy.context.evaluated_depsgraph_get()
-            update = seq.update(scene, depsgraph, filters=filters, frame=frame, plate=plate)
+            update = seq.update(scene, depsgraph, filters=filters, frame=frame, plate_frame=plate)
             boxes.append(update.boxes[image.name])
             built += update.tables["built"]
         boxes = np.array(boxes)
@@ -254,7 +250,7 @@ def test_render_threads_policy(live, seq, monkeypatch):
 def test_handler_removed_on_unregister_and_on_load(addon, seq, tmp_path):
     scene = bpy.context.scene
     assert not seq.installed()
-    seq.enable(scene)
+    scene.virtual_reflections.sequence = True
     assert seq.installed()
     path = tmp_path / "live.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
@@ -262,9 +258,9 @@ def test_handler_removed_on_unregister_and_on_load(addon, seq, tmp_path):
     assert not seq.installed()  # load_pre removed it; the new file has no live scene
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert seq.installed()  # load_post: this file has live update on
-    seq.enable(bpy.context.scene, False)
+    bpy.context.scene.virtual_reflections.sequence = False
     assert not seq.installed()
-    seq.enable(bpy.context.scene)
+    bpy.context.scene.virtual_reflections.sequence = True
     addon.unregister()
     try:
         assert not seq.installed()

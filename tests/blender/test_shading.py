@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from shots import node_tree_signature  # noqa: E402
 
 bpy = pytest.importorskip("bpy")
 from bpy_extras.object_utils import world_to_camera_view  # noqa: E402
@@ -373,7 +374,7 @@ def snapshot(shading, scene, objects):
     return {
         "materials": {
             m.name: (
-                shading.node_tree_signature(m.node_tree),
+                node_tree_signature(m.node_tree),
                 tuple(m.diffuse_color),
                 sorted(m.keys()),
             )
@@ -385,7 +386,7 @@ def snapshot(shading, scene, objects):
         },
         "world": (
             scene.world.name if scene.world else None,
-            shading.node_tree_signature(scene.world.node_tree) if scene.world else None,
+            node_tree_signature(scene.world.node_tree) if scene.world else None,
         ),
         "ids": {
             kind: sorted(i.name for i in getattr(bpy.data, kind) if i.name != "Render Result")
@@ -658,11 +659,11 @@ def test_bad_arguments(shading, clean_file):
 
 def test_node_tree_signature_sees_changes(shading, clean_file):
     mat = new_material("M")
-    sig = shading.node_tree_signature(mat.node_tree)
-    assert shading.node_tree_signature(mat.copy().node_tree) == sig
+    sig = node_tree_signature(mat.node_tree)
+    assert node_tree_signature(mat.copy().node_tree) == sig
     mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.123
-    changed = shading.node_tree_signature(mat.node_tree)
+    changed = node_tree_signature(mat.node_tree)
     assert changed != sig
     link = mat.node_tree.nodes["Material Output"].inputs["Surface"].links[0]
     mat.node_tree.links.remove(link)
-    assert shading.node_tree_signature(mat.node_tree) != changed
+    assert node_tree_signature(mat.node_tree) != changed

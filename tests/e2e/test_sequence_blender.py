@@ -73,14 +73,8 @@ def start():
             scene.virtual_reflections.resolution = "256"
             scene.frame_set(1)
 
-            class Context:
-                def __init__(self):
-                    self.scene = scene
-                def evaluated_depsgraph_get(self):
-                    return bpy.context.evaluated_depsgraph_get()
-
-            generate.generate(Context(), [sphere])
-            seq.enable(scene)
+            generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [sphere])
+            scene.virtual_reflections.sequence = True
             result["lock"] = scene.render.use_lock_interface
             bpy.app.handlers.frame_change_post.append(record)
             scene.render.use_compositing = False

@@ -1,0 +1,105 @@
+"""The choices an artist makes, as Blender enum items, and the add-on's preferences as values.
+
+The scene settings (ui/properties.py) and the preferences (preferences.py) both offer these
+items, and the map pipeline reads the preferences here, so this module sits at the bottom of
+the Blender layer: it imports nothing of the add-on but the engine.
+"""
+
+from types import SimpleNamespace
+
+import bpy
+
+from ..virtual_reflections.mapsize import auto_map_width
+
+ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
+
+COMBINE_ITEMS = (
+    (
+        "REPLACE",
+        "Replace",
+        "Chrome: the object shows the environment map (the paper's replace mode)",
+    ),
+    ("MODULATE", "Modulate", "Material colour times the environment (the paper's modulate mode)"),
+    ("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
+    ("WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"),
+)
+METHOD_ITEMS = (
+    (
+        "CAMERA",
+        "Camera View",
+        "Place the plate exactly by the camera's field of view; where the photo saw nothing, "
+        "extend its edges into the sky, ground and sides it suggests (the most accurate on the "
+        "ground truth, docs/accuracy.md)",
+    ),
+    (
+        "PAPER",
+        "Paper (2004)",
+        "Ropinski et al.: the plate cut into regions around the object's bounds and folded "
+        "onto a cube (neighbouring objects show on the sides facing them)",
+    ),
+)
+FRONT_ITEMS = (
+    (
+        "CONTINUOUS",
+        "Continuous",
+        "The front face in the continuous limit (n -> infinity): no seams",
+    ),
+    ("TRIANGLES", "Triangles", "The paper's n triangles cut from the outer ring"),
+)
+RESOLUTION_ITEMS = (
+    (
+        "AUTO",
+        "Auto",
+        "From the object's size on screen: about 3 map pixels (pi) per pixel it spans, rounded "
+        "up to the next size below (256 to 4096)",
+    ),
+) + tuple(
+    (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
+    for w in (256, 512, 1024, 2048, 4096)
+)
+MAP_STORAGE_ITEMS = (
+    ("PACK", "Pack into .blend", "Maps are packed into the .blend file when it is saved"),
+    (
+        "FILES",
+        "Save as Files",
+        "Maps are saved as EXR files (in a vr_maps folder beside the .blend, or where the "
+        "extension's preferences say)",
+    ),
+)
+MAP_FOLDER_ITEMS = (
+    (
+        "BLEND",
+        "Beside the .blend",
+        "A vr_maps folder next to the .blend file (travels with the shot; save the file first)",
+    ),
+    (
+        "USER",
+        "Extension User Folder",
+        "Blender's per-user folder for this extension, maps/<file name>/ (works for unsaved "
+        "files; stays on this machine)",
+    ),
+)
+
+# What the preferences hold when the add-on is not an enabled extension (tests, scripts).
+DEFAULTS = SimpleNamespace(
+    combine="REPLACE", resolution="AUTO", map_storage="PACK", map_folder="BLEND"
+)
+DEFAULT_WIDTH = 1024  # Auto without an object to measure
+
+
+def addon_preferences(context=None):
+    """The extension's preferences, or `DEFAULTS` when it is not an enabled add-on."""
+    preferences = getattr(context or bpy.context, "preferences", None)
+    addon = preferences.addons.get(ADDON) if preferences is not None else None
+    if addon is None or addon.preferences is None:
+        return DEFAULTS
+    return addon.preferences
+
+
+def map_width(resolution: str, extent=None) -> int:
+    """The lat-long width for the resolution setting ("AUTO" or a width as text): with Auto,
+    the engine's rule for an object ``extent`` render pixels across (W = pi x extent, a power
+    of two from 256 to 4096; the one the accuracy study measured), 1024 without an extent."""
+    if resolution != "AUTO":
+        return int(resolution)
+    return DEFAULT_WIDTH if extent is None else auto_map_width(extent)

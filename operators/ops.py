@@ -1,0 +1,303 @@
+"""The add-on's operators: thin wrappers that check, call one function of the layer below,
+and report in one line (``self.report``), so scripts and the batch can call the same functions.
+
+Generate / Remove (generate.py), Set Up From Plate and its undo (compositor.py), Render
+Inter-Reflections (interreflect.py), Open in Image Editor (previews.py).
+"""
+
+import bpy
+
+from . import compositor, generate, interreflect, maps, plate, previews, shading
+
+COMPOSITE_IMAGE = "VR Inter-Reflections"  # the last inter-reflection render over the plate
+COMPOSITE_KIND = "composite"
+
+
+def _poll_generate(cls, context):
+    reason = generate.why_not_generate(context)
+    if reason:
+        cls.poll_message_set(reason)
+    return reason is None
+
+
+class VR_OT_generate(bpy.types.Operator):
+    """Build each selected (or marked) object's environment map from the plate and make it
+    reflect it"""
+
+    bl_idname = "vr.generate"
+    bl_label = "Generate Virtual Reflection"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_generate(cls, context)
+
+    def execute(self, context):
+        objects = generate.candidates(context)
+        wm = context.window_manager
+        wm.progress_begin(0, 2 * len(objects))
+        try:
+            report = generate.generate(
+                context.scene,
+                context.evaluated_depsgraph_get(),
+                objects,
+                progress=wm.progress_update,
+            )
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        for warning in report.warnings:
+            self.report({"WARNING"}, warning)
+        context.scene.virtual_reflections.last_report = report.summary()
+        if not report.done:
+            self.report({"ERROR"}, "No reflection generated: see the warnings")
+            return {"CANCELLED"}
+        self.report({"INFO"}, report.summary())
+        return {"FINISHED"}
+
+
+class VR_OT_remove(bpy.types.Operator):
+    """Remove all virtual reflections: restore materials and world, delete generated maps"""
+
+    bl_idname = "vr.remove"
+    bl_label = "Remove Virtual Reflections"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not generate.anything_attached():
+            cls.poll_message_set("Nothing to remove: no object has a virtual reflection")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            restored = generate.remove_all()
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Removed virtual reflections from {restored} object(s)")
+        context.scene.virtual_reflections.last_report = ""
+        return {"FINISHED"}
+
+
+class VR_OT_setup_plate(bpy.types.Operator):
+    """Match the render to the plate: resolution and pixel aspect, camera background,
+    transparent film, and the render composited over the plate"""
+
+    bl_idname = "vr.setup_plate"
+    bl_label = "Set Up From Plate"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        scene = context.scene
+        if scene is None or scene.camera is None:
+            cls.poll_message_set("The scene has no camera: add one and make it active")
+            return False
+        if plate.scene_plate(scene) is None:
+            cls.poll_message_set("Pick a plate image first")
+            return False
+        return True
+
+    def execute(self, context):
+        scene = context.scene
+        image = plate.scene_plate(scene)
+        try:
+            compositor.setup_from_plate(scene, image)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        plate.clear_cache()
+        self.report(
+            {"INFO"}, f"Render set to {image.size[0]}x{image.size[1]}, composited over {image.name}"
+        )
+        return {"FINISHED"}
+
+
+class VR_OT_undo_setup_plate(bpy.types.Operator):
+    """Restore the render settings, camera background and compositor from before Set Up"""
+
+    bl_idname = "vr.undo_setup_plate"
+    bl_label = "Undo Plate Set-Up"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or context.scene.get(compositor.RECORD) is None:
+            cls.poll_message_set("The scene was not set up from a plate")
+            return False
+        return True
+
+    def execute(self, context):
+        compositor.undo_setup_from_plate(context.scene)
+        return {"FINISHED"}
+
+
+def show_composite(context, composite):
+    """Put an (h, w, 3) composite into the image COMPOSITE_IMAGE (made by the add-on, updated
+    in place, removed with the maps) and show it in the open Image Editors."""
+    image = maps.store_map(COMPOSITE_IMAGE, composite, kind=COMPOSITE_KIND)
+    screen = context.screen if context.window is not None else None
+    for area in screen.areas if screen is not None else ():
+        if area.type == "IMAGE_EDITOR":
+            area.spaces.active.image = image
+    return image
+
+
+class VR_OT_render_passes(bpy.types.Operator):
+    """Render the reflective objects reflecting each other (paper §3.3): each pass builds the
+    maps from the previous composite. The result goes to the image "VR Inter-Reflections\""""
+
+    bl_idname = "vr.render_passes"
+    bl_label = "Render Inter-Reflections"
+    bl_options = {"REGISTER", "UNDO"}
+
+    passes: bpy.props.IntProperty(
+        name="Passes",
+        description="Recursion depth r: 1 reflects the plate only, 2 the objects in each other, "
+        "3 those reflections again",
+        default=2,
+        min=1,
+        max=32,
+        soft_max=8,
+    )
+    auto: bpy.props.BoolProperty(
+        name="Until Converged",
+        description=f"Render passes until one changes the image less than the tolerance "
+        f"(at most {interreflect.R_MAX})",
+        default=False,
+    )
+    tolerance: bpy.props.FloatProperty(
+        name="Tolerance",
+        description="Mean change of the objects' pixels (scene-linear) under which Until "
+        "Converged stops",
+        default=interreflect.TOLERANCE,
+        min=0.0,
+        soft_max=0.05,
+        precision=4,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_generate(cls, context)
+
+    def execute(self, context):
+        scene = context.scene
+        passes = "auto" if self.auto else self.passes
+        wm = context.window_manager
+        wm.progress_begin(0, interreflect.R_MAX if self.auto else self.passes)
+        try:
+            pixels, _ = plate.pixels(scene)
+            composite, _, reports = interreflect.render_passes(
+                scene,
+                context.evaluated_depsgraph_get(),
+                generate.candidates(context),
+                pixels,
+                passes,
+                tolerance=self.tolerance,
+                progress=wm.progress_update,
+            )
+        except (ValueError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc).strip().splitlines()[0])
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        show_composite(context, composite)
+        for warning in reports[0].warnings:
+            self.report({"WARNING"}, warning)
+        total = sum(r.seconds for r in reports)
+        per_pass = "; ".join(
+            f"{r.index}: {r.seconds:.1f} s, change {r.change:.4f}" for r in reports
+        )
+        summary = f"{len(reports)} pass(es) in {total:.1f} s ({per_pass}) -> '{COMPOSITE_IMAGE}'"
+        scene.virtual_reflections.last_report = summary
+        self.report({"INFO"}, summary)
+        return {"FINISHED"}
+
+
+def show_image(context, image):
+    """Show ``image`` in an Image Editor: one in this window if there is one, else a new
+    window (as View Render does). Returns the area, or None when there is no window."""
+    screen = context.screen if context.window is not None else None
+    if screen is None:
+        return None
+    for area in screen.areas:
+        if area.type == "IMAGE_EDITOR":
+            area.spaces.active.image = image
+            area.tag_redraw()
+            return area
+    wm = context.window_manager
+    before = {w.as_pointer() for w in wm.windows}
+    bpy.ops.wm.window_new()
+    window = next((w for w in wm.windows if w.as_pointer() not in before), None)
+    if window is None:
+        return None
+    area = max(window.screen.areas, key=lambda a: a.width * a.height)
+    area.type = "IMAGE_EDITOR"
+    area.spaces.active.image = image
+    return area
+
+
+class VR_OT_show_image(bpy.types.Operator):
+    """Open the picture in an Image Editor (this window's, or a new window)"""
+
+    bl_idname = "vr.show_image"
+    bl_label = "Open in Image Editor"
+    bl_options = {"REGISTER"}
+
+    kind: bpy.props.EnumProperty(
+        items=(
+            ("MAP", "Map", "The object's environment map (lat-long, camera frame)"),
+            ("SEGMENTATION", "Segmentation", "The plate cut into the paper's regions"),
+        ),
+        default="MAP",
+    )
+    object: bpy.props.StringProperty(name="Object", description="Default: the active object")
+
+    @classmethod
+    def description(cls, context, properties):
+        if properties.kind == "SEGMENTATION":
+            return "Open the plate with the paper's regions around this object in an Image Editor"
+        return "Open this object's environment map in an Image Editor"
+
+    @classmethod
+    def poll(cls, context):
+        if context.window is None or bpy.app.background:
+            cls.poll_message_set("Needs Blender's window")
+            return False
+        if shading.map_of(context.active_object) is None:
+            cls.poll_message_set("The active object has no virtual reflection: generate first")
+            return False
+        return True
+
+    def execute(self, context):
+        obj = context.scene.objects.get(self.object) if self.object else context.active_object
+        if obj is None or shading.map_of(obj) is None:
+            self.report({"WARNING"}, "No virtual reflection on that object: generate first")
+            return {"CANCELLED"}
+        try:
+            if self.kind == "SEGMENTATION":
+                image = previews.overlay_image(context.scene, obj)
+            else:
+                image = shading.map_of(obj)
+        except ValueError as exc:
+            self.report({"WARNING"}, str(exc))
+            return {"CANCELLED"}
+        if show_image(context, image) is None:
+            self.report({"WARNING"}, "No window to open an Image Editor in")
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+classes = (
+    VR_OT_generate,
+    VR_OT_remove,
+    VR_OT_setup_plate,
+    VR_OT_undo_setup_plate,
+    VR_OT_render_passes,
+    VR_OT_show_image,
+)
+register, unregister = bpy.utils.register_classes_factory(classes)

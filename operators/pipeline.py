@@ -1,0 +1,185 @@
+"""The map pipeline: the one way every feature turns the plate into an object's map.
+
+    the camera (bounds.camera_projection) -> plate scale and the method's Params (`view`)
+      -> each object's screen box in plate pixels (`object_boxes`) -> their union per map
+      -> the map's width (choices.map_width) -> the engine's cached lookup table and one
+         gather (`build_map`) -> (H, W, 3) float32 scene-linear map pixels
+
+Each caller keeps only what differs: Generate stores the map and attaches it (generate.py),
+Update Every Frame smooths the boxes over frames and writes in place (sequence.py), Live
+Update builds a reduced map while the object moves (live.py), the inter-reflection passes
+build from the previous composite (interreflect.py).
+"""
+
+import contextlib
+import time
+from dataclasses import dataclass, field
+
+from ..virtual_reflections import Params, lookup_table
+from ..virtual_reflections.composite import scale_box
+from ..virtual_reflections.envmap import apply_table
+from . import bounds
+
+LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
+
+
+@dataclass
+class Report:
+    """What a run did, for the operator's report, the panel and the batch log.
+
+    done: names of what was made (objects, or maps); warnings: one line each; timings: stage
+    -> seconds, summed over objects; plate: what was read as the plate; tables: lookup tables
+    built / reused from the engine's cache.
+    """
+
+    done: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    plate: str = ""
+    tables: dict = field(default_factory=lambda: {"built": 0, "reused": 0})
+
+    def time(self, stage, seconds):
+        self.timings[stage] = self.timings.get(stage, 0.0) + seconds
+
+    @contextlib.contextmanager
+    def timed(self, stage):
+        """Add the time spent inside the block to ``stage``."""
+        started = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.time(stage, time.perf_counter() - started)
+
+    def summary(self):
+        stages = ", ".join(f"{k} {1000 * v:.0f} ms" for k, v in self.timings.items())
+        total = 1000 * sum(self.timings.values())
+        return f"{len(self.done)} reflection(s) in {total:.0f} ms ({stages})"
+
+
+def params(settings, intrinsics=None) -> Params:
+    """The engine's Params for a scene's settings. ``intrinsics`` (fx, fy, cx, cy) in plate
+    pixels select the camera-view method when it is chosen; without them (an orthographic
+    camera, the segmentation previews) it is the paper's."""
+    n = 0 if settings.front == "CONTINUOUS" else 4 * max(1, round(settings.triangles / 4))
+    camera = settings.method == "CAMERA" and intrinsics is not None
+    return Params(
+        enlarge=settings.enlarge / 100.0,
+        border=settings.border / 100.0,
+        triangles=n,
+        method="camera" if camera else "paper",
+        intrinsics=tuple(intrinsics) if camera else None,
+    )
+
+
+@dataclass(frozen=True)
+class View:
+    """The camera and the plate at one moment: how render pixels map to plate pixels.
+
+    projection: the render camera (bounds.CameraProjection); scale: (sx, sy) render -> plate
+    pixels; params: the engine's Params for the scene's settings and this camera; plate_shape:
+    (H, W) of the plate.
+    """
+
+    projection: bounds.CameraProjection
+    scale: tuple
+    params: Params
+    plate_shape: tuple
+
+    def warnings(self, settings) -> list:
+        """Advice about the set-up: no camera view method for an orthographic camera, a plate
+        whose aspect differs from the render's."""
+        out = []
+        if settings.method == "CAMERA" and self.params.intrinsics is None:
+            out.append(
+                "orthographic camera: the camera-view method needs a perspective camera; "
+                "used the paper's method"
+            )
+        sx, sy = self.scale
+        if abs(sx - sy) > 0.01 * max(sx, sy):
+            ph, pw = self.plate_shape
+            out.append(
+                f"plate {pw}x{ph} and render {self.projection.width}x{self.projection.height} "
+                "differ in aspect: use Set Up From Plate"
+            )
+        return out
+
+
+def view(scene, plate_shape, depsgraph=None) -> View:
+    """The View of ``scene``'s camera for a plate of ``plate_shape`` (H, W, ...). With a
+    ``depsgraph``, the camera as evaluated there (during a render the original objects still
+    hold the frame the viewport showed before). ValueError without a usable camera."""
+    camera = scene.camera
+    if camera is not None and depsgraph is not None:
+        camera = camera.evaluated_get(depsgraph)
+    projection = bounds.camera_projection(scene, camera)
+    sx, sy = projection.plate_scale(plate_shape)
+    shape = tuple(plate_shape[:2])
+    return View(
+        projection,
+        (sx, sy),
+        params(scene.virtual_reflections, projection.intrinsics(sx, sy)),
+        shape,
+    )
+
+
+def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=None):
+    """Each object's screen box in plate pixels -> ({object: (x0, y0, x1, y1)}, {object: extent
+    in render pixels}, [one-line problems]). Objects without geometry or outside the camera's
+    view are left out and named in the problems ("<name> is outside the camera view:
+    <outside>"). ``progress`` is called with the index of each object done."""
+    boxes, extents, problems = {}, {}, []
+    for i, obj in enumerate(objects):
+        try:
+            box = bounds.object_bounds(obj, depsgraph, scene, projection=view.projection)
+        except ValueError as exc:
+            problems.append(f"{obj.name}: {exc}")
+            continue
+        if not box.visible:
+            problems.append(f"{obj.name} is outside the camera view: {outside}")
+            continue
+        boxes[obj] = scale_box((box.x0, box.y0, box.x1, box.y1), *view.scale)
+        extents[obj] = box.extent()
+        if progress:
+            progress(i)
+    return boxes, extents, problems
+
+
+def build_map(pixels, box, map_params, width, report, name=None):
+    """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
+    -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
+    comes from the engine's cache when the plate size, box, params and width were seen before
+    (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
+    report's warnings (`fit_warnings`)."""
+    h, w = pixels.shape[:2]
+    with report.timed("table"):
+        misses = lookup_table.cache_info().misses
+        table = lookup_table(w, h, tuple(float(v) for v in box), map_params, "latlong", width)
+        report.tables["built" if lookup_table.cache_info().misses > misses else "reused"] += 1
+    if name is not None:
+        paper = map_params.method == "paper"
+        report.warnings.extend(fit_warnings(name, table.segmentation, paper))
+    with report.timed("gather"):
+        env = apply_table(table, pixels)
+    return env, table
+
+
+def fit_warnings(name, seg, paper=True) -> list:
+    """Advice (not errors) for an object's segmentation: region X had to shrink below its
+    bounds near a border (paper §3.2; only with the paper's method), or the object covers so
+    much of the plate that little is left around it to reflect."""
+    out = []
+    if paper and seg.shrunk:
+        out.append(
+            f"{name} is so close to the plate's border that region X is smaller than its "
+            "bounds: the reflection behind it is cropped"
+        )
+    b = seg.bbox
+    w = min(b.x1, seg.width) - max(b.x0, 0.0)
+    h = min(b.y1, seg.height) - max(b.y0, 0.0)
+    share = max(w, 0.0) * max(h, 0.0) / (seg.width * seg.height)
+    if share > LARGE_SHARE:
+        out.append(
+            f"{name} covers {share:.0%} of the plate: little is left around it to reflect "
+            "(move the camera back or use a wider plate)"
+        )
+    return out

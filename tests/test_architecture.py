@@ -1,0 +1,529 @@
+"""The extension's import graph stays clean. Source is parsed with `ast`; nothing is imported.
+
+The package is the repository root: its `__init__.py`, `preferences.py` and every top-level
+folder that is a Python package (`operators/`, `ui/`, `virtual_reflections/`, ...). Modules are
+named by dotted path from the root ("" is the root package itself, "operators.generate" is
+operators/generate.py) and reported by file path.
+
+Every `import` / `from ... import` counts, at module level and inside functions or classes. An
+import points at the module it names: `from . import x` at the submodule x when x is one, else
+at the package; `from .x import name` at x.name when that is a submodule, else at x. (Parent
+packages that Python initialises on the way are not edges, as in import-linter's graph: the
+cycles reported are the ones the code spells out.)
+
+Rules:
+1. no import cycle among the package's modules;
+2. no module uses another module's private name (`from .x import _name`, `x._name`);
+3. the engine `virtual_reflections/` never imports bpy (or other Blender-only modules), the
+   add-on's `operators`, `ui`, `preferences` or its root `__init__.py`;
+4. the product never imports a research package: `study`, `benchmarks`, `tests`, or any other
+   top-level package of the repository that is not part of the product.
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Top-level names of the product: the root package "" is its __init__.py.
+PRODUCT = ("", "preferences", "operators", "ui", "virtual_reflections")
+RESEARCH = ("study", "benchmarks", "tests")
+ENGINE = "virtual_reflections"
+BLENDER_ONLY = (
+    "bpy", "bpy_extras", "bpy_types", "bmesh", "mathutils", "gpu", "gpu_extras", "blf",
+    "bl_math", "bl_ui", "bl_operators", "idprop", "aud", "freestyle",
+)  # fmt: skip
+NOT_IN_ENGINE = ("operators", "ui", "preferences", "")  # "": the add-on's root __init__.py
+SKIP_DIRS = {"__pycache__", "node_modules"}
+
+
+# --- the checker ---------------------------------------------------------------------------
+
+
+def discover(root: Path) -> dict[str, Path]:
+    """{module name: file} of the package at `root`: its __init__.py, its top-level .py files
+    that are part of it (those of `top_modules`) and every package folder below it."""
+    modules = {}
+    if (root / "__init__.py").is_file():
+        modules[""] = root / "__init__.py"
+    for path in sorted(root.glob("*.py")):
+        if path.stem != "__init__" and path.stem in top_modules(root):
+            modules[path.stem] = path
+    for folder in top_packages(root):
+        for path in sorted((root / folder).rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            if any(p in SKIP_DIRS or p.startswith(".") for p in parts):
+                continue
+            # Only files whose every folder is a package (has an __init__.py).
+            if not all(
+                (root.joinpath(*parts[:i]) / "__init__.py").is_file() for i in range(1, len(parts))
+            ):
+                continue
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join(parts)] = path
+    return modules
+
+
+def top_packages(root: Path) -> list[str]:
+    """Top-level folders of `root` that are Python packages (hidden folders skipped)."""
+    return sorted(
+        p.name
+        for p in root.iterdir()
+        if p.is_dir()
+        and not p.name.startswith(".")
+        and p.name not in SKIP_DIRS
+        and (p / "__init__.py").is_file()
+    )
+
+
+def top_modules(root: Path) -> set[str]:
+    """Top-level .py modules that belong to the package (the others are scripts)."""
+    return {name for name in PRODUCT if name and (root / f"{name}.py").is_file()}
+
+
+def display(name: str, modules: dict[str, Path], root: Path) -> str:
+    """A module's file path relative to the root (or the dotted name if it has no file)."""
+    path = modules.get(name)
+    return path.relative_to(root).as_posix() if path else (name or "__init__.py")
+
+
+@dataclass(frozen=True)
+class Import:
+    """One import of a file.
+
+    target:  dotted name from the package root ("" the root package) for the package's own and
+             relative imports, else the absolute name as written (e.g. "bpy.props").
+    names:   what `from ... import` took from `target` that is not a submodule.
+    binding: (local name, dotted module) when the statement binds a name to a module.
+    internal: the target is inside the repository (relative, or absolute from a top-level
+             name of it); only internal targets are resolved against the package's modules.
+    """
+
+    target: str
+    line: int
+    names: tuple[str, ...] = ()
+    binding: tuple[str, str] | None = None
+    internal: bool = True
+
+
+def _package_of(name: str, path: Path) -> str:
+    """The package a module's relative imports start from."""
+    if path.name == "__init__.py":
+        return name
+    return name.rpartition(".")[0]
+
+
+def _join(*parts: str) -> str:
+    return ".".join(p for p in parts if p)
+
+
+def _resolve_from(node: ast.ImportFrom, name: str, path: Path) -> str | None:
+    """The dotted module a `from ... import` reads from; None when it climbs above the root."""
+    if node.level == 0:
+        return node.module or ""
+    package = _package_of(name, path)
+    parts = package.split(".") if package else []
+    up = node.level - 1
+    if up > len(parts):
+        return None
+    return _join(".".join(parts[: len(parts) - up]), node.module or "")
+
+
+def file_imports(name: str, modules: dict[str, Path], local: set[str]) -> list[Import]:
+    """Every import of module `name`, anywhere in its file, resolved (see module docstring).
+
+    `local`: top-level names that belong to the repository, so that absolute imports such as
+    `import operators` or `from virtual_reflections import x` resolve like relative ones.
+    """
+    path = modules[name]
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                # `import a.b` binds a to module a; `import a.b as c` binds c to a.b.
+                if alias.asname:
+                    binding = (alias.asname, alias.name)
+                else:
+                    top = alias.name.split(".")[0]
+                    binding = (top, top)
+                internal = alias.name.split(".")[0] in local
+                found.append(Import(alias.name, node.lineno, (), binding, internal))
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve_from(node, name, path)
+            if base is None:
+                continue
+            if node.level == 0 and base.split(".")[0] not in local:
+                names = tuple(a.name for a in node.names)
+                found.append(Import(base, node.lineno, names, None, False))
+                continue
+            names = []
+            for alias in node.names:
+                sub = _join(base, alias.name)
+                if alias.name != "*" and sub in modules:
+                    found.append(Import(sub, node.lineno, (), (alias.asname or alias.name, sub)))
+                else:
+                    names.append(alias.name)
+            if names:
+                found.append(Import(base, node.lineno, tuple(names)))
+    return found
+
+
+def all_imports(modules: dict[str, Path], root: Path) -> dict[str, list[Import]]:
+    local = set(top_packages(root)) | top_modules(root) | set(RESEARCH)
+    return {name: file_imports(name, modules, local) for name in modules}
+
+
+def known_module(target: str, modules: dict[str, Path]) -> str | None:
+    """The package module an import target names: itself, or its longest existing prefix
+    (never the root package for a target below it: `tests.x` is no import of __init__.py)."""
+    if target == "":
+        return "" if "" in modules else None
+    parts = target.split(".")
+    for i in range(len(parts), 0, -1):
+        candidate = ".".join(parts[:i])
+        if candidate in modules:
+            return candidate
+    return None
+
+
+def import_graph(modules: dict[str, Path], imports: dict[str, list[Import]]):
+    """{module: set of the package's modules it imports} (self-imports dropped)."""
+    graph = {name: set() for name in modules}
+    for name, found in imports.items():
+        for imp in found:
+            if not imp.internal:
+                continue
+            target = known_module(imp.target, modules)
+            if target is not None and target != name:
+                graph[name].add(target)
+    return graph
+
+
+def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Every elementary cycle of `graph`, each starting at its smallest module and closed
+    (["a", "b", "a"]), sorted by length then name."""
+    cycles = []
+    order = sorted(graph)
+    rank = {n: i for i, n in enumerate(order)}
+    for start in order:
+        # Simple paths from `start` through modules ranked above it, back to `start`.
+        stack = [(start, iter(sorted(graph[start])))]
+        path, on_path = [start], {start}
+        while stack:
+            node, children = stack[-1]
+            for child in children:
+                if child == start:
+                    cycles.append(path + [start])
+                elif child not in on_path and rank.get(child, -1) > rank[start]:
+                    path.append(child)
+                    on_path.add(child)
+                    stack.append((child, iter(sorted(graph.get(child, ())))))
+                    break
+            else:
+                stack.pop()
+                on_path.discard(path.pop())
+    return sorted(cycles, key=lambda c: (len(c), c))
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def private_uses(modules: dict[str, Path], imports: dict[str, list[Import]], root: Path):
+    """Messages for every use of another module's private name: `from .x import _name` and
+    `x._name` where x is bound to one of the package's modules in that file."""
+    problems = []
+    for name, found in imports.items():
+        where = display(name, modules, root)
+        bound = {}  # local name -> package module, from every import in the file
+        for imp in found:
+            if imp.internal and imp.binding is not None and imp.binding[1] in modules:
+                bound[imp.binding[0]] = imp.binding[1]
+            owner = known_module(imp.target, modules) if imp.internal else None
+            if owner is None or owner == name:
+                continue
+            for n in imp.names:
+                if _private(n):
+                    problems.append(
+                        (
+                            name,
+                            imp.line,
+                            f"{where}:{imp.line} imports {n} from "
+                            f"{display(owner, modules, root)} (private)",
+                        )
+                    )
+        tree = ast.parse(modules[name].read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and _private(node.attr):
+                owner = _module_expr(node.value, bound, modules)
+                if owner is not None and owner != name:
+                    problems.append(
+                        (
+                            name,
+                            node.lineno,
+                            f"{where}:{node.lineno} uses {ast.unparse(node)}, "
+                            f"a private name of {display(owner, modules, root)}",
+                        )
+                    )
+    return [message for *_, message in sorted(set(problems))]
+
+
+def _module_expr(node: ast.expr, bound: dict[str, str], modules: dict[str, Path]) -> str | None:
+    """The package module an expression names (`x`, `x.sub`), or None."""
+    if isinstance(node, ast.Name):
+        return bound.get(node.id)
+    if isinstance(node, ast.Attribute):
+        owner = _module_expr(node.value, bound, modules)
+        if owner is not None and _join(owner, node.attr) in modules:
+            return _join(owner, node.attr)
+    return None
+
+
+def _top(target: str) -> str:
+    return target.split(".")[0] if target else ""
+
+
+def forbidden_imports(modules, imports, root, importers, forbidden, why):
+    """Messages for imports by modules whose top-level name is in `importers` of targets whose
+    top-level name is in `forbidden` ("" is the root package)."""
+    problems = []
+    for name, found in imports.items():
+        if _top(name) not in importers:
+            continue
+        for imp in found:
+            if _top(imp.target) in forbidden:
+                shown = display(imp.target, modules, root) if imp.target in modules else imp.target
+                if imp.names:
+                    shown += f" ({', '.join(imp.names)})"
+                problems.append(
+                    (
+                        name,
+                        imp.line,
+                        f"{display(name, modules, root)}:{imp.line} imports {shown} ({why})",
+                    )
+                )
+    return [message for *_, message in sorted(set(problems))]
+
+
+def check(root: Path) -> dict[str, list[str]]:
+    """All four rules on the package at `root`: {rule: problem messages}."""
+    modules = discover(root)
+    imports = all_imports(modules, root)
+    graph = import_graph(modules, imports)
+    cycles = [" -> ".join(display(n, modules, root) for n in cycle) for cycle in find_cycles(graph)]
+    research = (set(top_packages(root)) - set(PRODUCT)) | set(RESEARCH)
+    return {
+        "cycles": cycles,
+        "private": private_uses(modules, imports, root),
+        "engine": forbidden_imports(
+            modules,
+            imports,
+            root,
+            {ENGINE},
+            set(BLENDER_ONLY) | set(NOT_IN_ENGINE),
+            "the engine must not import Blender or the add-on",
+        ),
+        "research": forbidden_imports(
+            modules,
+            imports,
+            root,
+            set(PRODUCT),
+            research,
+            "the product must not import research code",
+        ),
+    }
+
+
+def _report(title: str, problems: list[str]) -> str:
+    return f"{len(problems)} {title}:\n  " + "\n  ".join(problems)
+
+
+# --- the rules on the repository -----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def repo_problems():
+    return check(REPO)
+
+
+def test_the_checker_sees_the_whole_extension():
+    modules = discover(REPO)
+    for name in ("", "preferences", "operators", "ui", "virtual_reflections"):
+        assert name in modules, f"{name or '__init__'} not found"
+    for package in ("operators", "ui", "virtual_reflections"):
+        assert any(m.startswith(package + ".") for m in modules), f"no modules in {package}/"
+    assert not any(name.split(".")[0] in RESEARCH for name in modules)  # not packages
+
+
+def test_no_import_cycles(repo_problems):
+    cycles = repo_problems["cycles"]
+    assert not cycles, _report("import cycles (break each one)", cycles)
+
+
+def test_no_private_names_across_modules(repo_problems):
+    private = repo_problems["private"]
+    assert not private, _report("uses of another module's private name", private)
+
+
+def test_engine_never_imports_blender_or_the_addon(repo_problems):
+    engine = repo_problems["engine"]
+    assert not engine, _report("engine imports of Blender or the add-on", engine)
+
+
+def test_product_never_imports_research(repo_problems):
+    research = repo_problems["research"]
+    assert not research, _report("product imports of research packages", research)
+
+
+# --- the checker on synthetic packages -----------------------------------------------------
+
+
+def _package(root: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        path = root / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return root
+
+
+def test_a_cycle_through_a_function_level_import_is_found(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "from . import operators\n",
+            "operators/__init__.py": "from . import a\n",
+            "operators/a.py": "from . import b\n",
+            "operators/b.py": "def f():\n    from .a import thing\n    return thing\n",
+        },
+    )
+    assert check(root)["cycles"] == ["operators/a.py -> operators/b.py -> operators/a.py"]
+
+
+def test_a_cycle_across_packages_and_every_cycle_is_listed(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "preferences.py": "from .ui.properties import ITEMS\n",
+            "ui/__init__.py": "",
+            "ui/properties.py": "ITEMS = ()\ndef f():\n    from ..operators import live\n",
+            "operators/__init__.py": "",
+            "operators/live.py": "from . import generate\n",
+            "operators/generate.py": "def g():\n    from .. import preferences\n"
+            "    from . import live\n",
+        },
+    )
+    assert check(root)["cycles"] == [
+        "operators/generate.py -> operators/live.py -> operators/generate.py",
+        "operators/generate.py -> preferences.py -> ui/properties.py -> operators/live.py"
+        " -> operators/generate.py",
+    ]
+
+
+def test_a_clean_package_passes(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "from . import operators, preferences\n",
+            "preferences.py": "import bpy\nfrom .operators import generate\n",
+            "operators/__init__.py": "from . import generate\n",
+            "operators/generate.py": (
+                "import bpy\nfrom ..virtual_reflections import segment\n"
+                "from ..virtual_reflections.layouts import map_shape as shape\n"
+                "from . import maps\n\ndef f():\n    return maps.store(shape), maps.__name__\n"
+            ),
+            "operators/maps.py": "import os\ndef store(x):\n    return os.sep, _helper()\n"
+            "def _helper():\n    return 1\n",
+            "virtual_reflections/__init__.py": "from .segmentation import segment\n",
+            "virtual_reflections/segmentation.py": "import numpy as np\n"
+            "from .layouts import map_shape\ndef segment():\n    return np._NoValue\n",
+            "virtual_reflections/layouts.py": "def map_shape():\n    pass\n",
+            "tests/test_x.py": "from virtual_reflections import segment\n",
+            "benchmarks/bench.py": "import operators\n",
+        },
+    )
+    assert check(root) == {"cycles": [], "private": [], "engine": [], "research": []}
+
+
+def test_private_names_are_flagged_both_ways(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "operators/__init__.py": "",
+            "operators/a.py": "_x = 1\n__version__ = 2\ndef _f():\n    pass\n",
+            "operators/b.py": "from .a import _x, __version__\n",
+            "operators/c.py": "from . import a\n\ndef g():\n    return a._f(), a.__name__\n",
+            "operators/d.py": "from . import a\nfrom .. import operators as ops\n"
+            "print(a.public, ops.a.__doc__)\n",
+            "ui/__init__.py": "",
+            "ui/panel.py": "def h():\n    from ..operators import a as mod\n"
+            "    import operators.a\n    return mod._x, operators.a._f\n",
+        },
+    )
+    assert check(root)["private"] == [
+        "operators/b.py:1 imports _x from operators/a.py (private)",
+        "operators/c.py:4 uses a._f, a private name of operators/a.py",
+        "ui/panel.py:4 uses mod._x, a private name of operators/a.py",
+        "ui/panel.py:4 uses operators.a._f, a private name of operators/a.py",
+    ]
+
+
+def test_from_package_import_module_then_public_attribute_is_fine(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "operators/__init__.py": "",
+            "operators/a.py": "public = 1\n_hidden = 2\n",
+            "operators/b.py": "from . import a\nvalue = a.public\n",
+            "operators/c.py": "def f(self):\n    return self._cache, _local._x\n_local = None\n",
+        },
+    )
+    assert check(root)["private"] == []
+
+
+def test_engine_and_research_rules(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "from .operators import x\n",
+            "preferences.py": "def f():\n    from .study import runs\n",
+            "ui/__init__.py": "import benchmarks.speed\n",
+            "operators/__init__.py": "",
+            "operators/x.py": "from ..tests import helpers\n",
+            "study/__init__.py": "from ..operators import x\n",
+            "study/runs.py": "",
+            "virtual_reflections/__init__.py": "",
+            "virtual_reflections/a.py": "def f():\n    import bpy.props\n"
+            "    from .. import preferences\n",
+            "virtual_reflections/b.py": "from ..ui import panel\nfrom ..operators.x import y\n"
+            "import mathutils\n",
+        },
+    )
+    problems = check(root)
+    assert problems["cycles"] == []  # `from ..tests import` is no edge to __init__.py
+    assert problems["engine"] == [
+        "virtual_reflections/a.py:2 imports bpy.props "
+        "(the engine must not import Blender or the add-on)",
+        "virtual_reflections/a.py:3 imports preferences.py "
+        "(the engine must not import Blender or the add-on)",
+        "virtual_reflections/b.py:1 imports ui/__init__.py (panel) "
+        "(the engine must not import Blender or the add-on)",
+        "virtual_reflections/b.py:2 imports operators/x.py (y) "
+        "(the engine must not import Blender or the add-on)",
+        "virtual_reflections/b.py:3 imports mathutils "
+        "(the engine must not import Blender or the add-on)",
+    ]
+    assert problems["research"] == [
+        "operators/x.py:1 imports tests (helpers) (the product must not import research code)",
+        "preferences.py:2 imports study/runs.py (the product must not import research code)",
+        "ui/__init__.py:1 imports benchmarks.speed (the product must not import research code)",
+    ]
