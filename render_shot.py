@@ -20,6 +20,9 @@ object), --combine REPLACE|MODULATE|MIX|WORLD, --resolution W, --triangles N, --
 the image settles; --tolerance T, --max-passes N), --no-reflections (the plain render, for
 comparisons), --name STEM. Bad input (a bad range, a missing plate frame, an unwritable
 folder): one line on stderr, exit code 2, nothing written.
+
+The options go to the batch (operators/batch.py) as one `BatchOptions`
+(operators/batch_options.py), checked when it is made, right after parsing.
 """
 
 import argparse
@@ -73,6 +76,8 @@ def _unit(text):
 
 
 def parse(argv):
+    """The command line -> an argparse namespace whose attributes are BatchOptions' fields
+    (`batch_options` makes it one). Needs no bpy."""
     p = _Parser(prog="render_shot", description=__doc__.splitlines()[0])
     p.add_argument("blend", nargs="?", help="the shot (.blend); omit under blender -b shot.blend")
     p.add_argument("--plate", required=True, help="background plate image file")
@@ -118,18 +123,27 @@ def main(argv=None):
         return EXIT_BAD_INPUT if exc.code else 0
     addon, own = _addon()
     try:
-        return run(bpy, addon, own, args)
+        return run(bpy, addon, own, batch_options(addon, args))
     except (ValueError, OSError, RuntimeError) as exc:
         print(f"render_shot: error: {str(exc).strip().splitlines()[0]}", file=sys.stderr)
         return getattr(exc, "exit_code", EXIT_BAD_INPUT)  # 1: a frame failed mid-run
 
 
-def run(bpy, addon, own, args):
+def batch_options(addon, args):
+    """The parsed command line as the add-on's BatchOptions; ValueError (one line) if an
+    option is bad, before the shot is opened."""
+    from importlib import import_module
+
+    module = import_module(addon.__name__ + ".operators.batch_options")
+    return module.BatchOptions.from_namespace(args)
+
+
+def run(bpy, addon, own, options):
     started = time.perf_counter()
-    if args.blend:
-        if not os.path.isfile(args.blend):
-            raise ValueError(f"shot not found: {args.blend}")
-        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+    if options.blend:
+        if not os.path.isfile(options.blend):
+            raise ValueError(f"shot not found: {options.blend}")
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(options.blend))
     registered = own and not hasattr(bpy.types.Scene, "virtual_reflections")
     if registered:
         addon.register()
@@ -137,7 +151,7 @@ def run(bpy, addon, own, args):
         from importlib import import_module
 
         batch = import_module(addon.__name__ + ".operators.batch")
-        return batch.render_shot(args, started)
+        return batch.render_shot(options, started)
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()

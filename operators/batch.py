@@ -19,11 +19,13 @@ import os
 import re
 import tempfile
 import time
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from . import compositor, generate, interreflect, sequence
+from .batch_options import BatchOptions
 
 ENGINES = {"CYCLES": ("CYCLES",), "EEVEE": ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")}
 
@@ -104,55 +106,57 @@ def _save(scene, pixels_rgb, path, fmt):
         bpy.data.images.remove(image)
 
 
-def _configure(scene, args):
+def _configure(scene, options: BatchOptions):
     """The render and reflection settings from the command line (both paths)."""
     settings = scene.virtual_reflections
-    if args.scale:
-        scene.render.resolution_percentage = args.scale
-    for key in ("combine", "resolution"):
-        value = getattr(args, key)
-        if value is not None:
-            setattr(settings, key, str(value) if key == "resolution" else value)
-    if getattr(args, "method", None):
-        settings.method = args.method.upper()
-    if args.triangles is not None:
-        settings.front = "CONTINUOUS" if args.triangles == 0 else "TRIANGLES"
-        settings.triangles = max(4, args.triangles)
-    if getattr(args, "smoothing", None) is not None:
-        settings.smoothing = args.smoothing
-    if args.engine:
-        _set_engine(scene, args.engine)
-    if args.samples and scene.render.engine == "CYCLES":
-        scene.cycles.samples = args.samples
-    elif args.samples:
+    if options.scale:
+        scene.render.resolution_percentage = options.scale
+    if options.combine is not None:
+        settings.combine = options.combine
+    if options.resolution is not None:
+        settings.resolution = str(options.resolution)
+    if options.method:
+        settings.method = options.method.upper()
+    if options.triangles is not None:
+        settings.front = "CONTINUOUS" if options.triangles == 0 else "TRIANGLES"
+        settings.triangles = max(4, options.triangles)
+    if options.smoothing is not None:
+        settings.smoothing = options.smoothing
+    if options.engine:
+        _set_engine(scene, options.engine)
+    if options.samples and scene.render.engine == "CYCLES":
+        scene.cycles.samples = options.samples
+    elif options.samples:
         for attr in ("taa_render_samples",):
             if hasattr(scene.eevee, attr):
-                setattr(scene.eevee, attr, args.samples)
+                setattr(scene.eevee, attr, options.samples)
 
 
-def _shot_name(args):
-    return args.name or os.path.splitext(os.path.basename(bpy.data.filepath or "shot"))[0]
+def _shot_name(options: BatchOptions):
+    return options.name or os.path.splitext(os.path.basename(bpy.data.filepath or "shot"))[0]
 
 
-def render_shot(args, started):
+def render_shot(options: BatchOptions, started):
     """The batch entry: one frame (the historical outputs) or a frame range (`render_frames`).
     Returns the exit code; raises ValueError/OSError/RuntimeError (one line) on bad input."""
+    if not isinstance(options, BatchOptions):
+        raise TypeError(f"render_shot takes a BatchOptions, not {type(options).__name__}")
     scene = bpy.context.scene
     if scene.camera is None:
         raise ValueError(f"scene {scene.name!r} has no camera")
-    source = PlateSource(args.plate)
-    if getattr(args, "frames", None) is not None or source.kind != "still":
-        return render_frames(args, started, source)
+    source = PlateSource(options.plate)
+    if options.frames is not None or source.kind != "still":
+        return render_frames(options, started, source)
     settings = scene.virtual_reflections
     stamp = lambda: f"{time.perf_counter() - started:6.2f} s"  # noqa: E731
-    if args.frame is not None:
-        scene.frame_set(args.frame)
-    image = load_plate(args.plate)
+    if options.frame is not None:
+        scene.frame_set(options.frame)
+    image = load_plate(options.plate)
     settings.plate_image = image
     compositor.setup_from_plate(scene, image)
-    _configure(scene, args)
-    os.makedirs(args.out, exist_ok=True)
-    name = _shot_name(args)
+    _configure(scene, options)
+    os.makedirs(options.out, exist_ok=True)
+    name = _shot_name(options)
     print(
         f"[{stamp()}] plate {image.name} {image.size[0]}x{image.size[1]}, "
         f"render {scene.render.resolution_x}x{scene.render.resolution_y} "
@@ -161,21 +165,21 @@ def render_shot(args, started):
 
     # --- inter-reflections (paper §3.3, operators/interreflect.py) -------------------------------
     # --passes N|auto: generate, render and composite in passes instead of the one pass below.
-    passes = getattr(args, "passes", 1)
-    if not args.no_reflections and passes != 1:
-        render_path = os.path.abspath(os.path.join(args.out, f"{name}_render.exr"))
+    passes = options.passes
+    if not options.no_reflections and passes != 1:
+        render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
         comp = interreflect.render_shot_passes(
             _Context(scene),
-            _objects(scene, args.objects),
+            _objects(scene, options.objects),
             passes,
             render_path,
             log=lambda line: print(f"[{stamp()}] {line}"),
         )
-        _save_composite(scene, comp, args.out, name, stamp, time.perf_counter())
+        _save_composite(scene, comp, options.out, name, stamp, time.perf_counter())
         return 0
 
-    if not args.no_reflections:
-        objects = _objects(scene, args.objects)
+    if not options.no_reflections:
+        objects = _objects(scene, options.objects)
         if not objects:
             raise ValueError("no object to reflect the plate (use --objects or mark objects)")
         report = generate.generate(_Context(scene), objects)
@@ -186,7 +190,7 @@ def render_shot(args, started):
         print(f"[{stamp()}] reflections: {report.summary()}")
 
     t = time.perf_counter()
-    render_path = os.path.abspath(os.path.join(args.out, f"{name}_render.exr"))
+    render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
     _render_settings(scene)
     scene.render.filepath = render_path
     bpy.ops.render.render(write_still=True, scene=scene.name)
@@ -196,7 +200,7 @@ def render_shot(args, started):
     rgba = read_rgba(render_path)
     plate, _ = generate.plate_pixels(scene, image)
     comp = compositor.composite_over_plate(rgba, _fit(plate, rgba.shape))
-    _save_composite(scene, comp, args.out, name, stamp, t)
+    _save_composite(scene, comp, options.out, name, stamp, t)
     return 0
 
 
@@ -238,7 +242,7 @@ class BatchError(RuntimeError):
     exit_code = 1
 
 
-FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}
+FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}  # BatchOptions.format -> Blender's file format
 
 
 class PlateSource:
@@ -295,13 +299,12 @@ class PlateSource:
         return self.image
 
 
-def _frames(args, scene):
-    if getattr(args, "frames", None) is not None:
-        if args.frame is not None:
-            raise ValueError("give --frame or --frames, not both")
-        return sequence.parse_frames(args.frames)
-    if args.frame is not None:
-        return [args.frame]
+def _frames(options: BatchOptions, scene):
+    """The frames to render (BatchOptions refused --frame with --frames)."""
+    if options.frames is not None:
+        return sequence.parse_frames(options.frames)
+    if options.frame is not None:
+        return [options.frame]
     return list(range(scene.frame_start, scene.frame_end + 1, max(1, scene.frame_step)))
 
 
@@ -391,21 +394,17 @@ def _totals(entries, wall):
     }
 
 
-def render_frames(args, started, source):
+def render_frames(options: BatchOptions, started, source):
     """Render a frame range: per frame its plate, maps, render and composite; see the module
     docstring. Returns 0; raises ValueError (one line) for bad input before writing."""
     scene = bpy.context.scene
     settings = scene.virtual_reflections
-    frames = _frames(args, scene)
-    fmt = getattr(args, "format", None) or "exr"
-    if fmt not in FORMATS:
-        raise ValueError(f"--format must be exr or png, not {fmt!r}")
-    passes = getattr(args, "passes", 1)
-    out = os.path.abspath(args.out)
-    name = _shot_name(args)
-    report_path = os.path.abspath(
-        getattr(args, "report", None) or os.path.join(out, f"{name}.report.json")
-    )
+    frames = _frames(options, scene)
+    fmt = options.format
+    passes = options.passes
+    out = os.path.abspath(options.out)
+    name = _shot_name(options)
+    report_path = os.path.abspath(options.report or os.path.join(out, f"{name}.report.json"))
     source.check(frames)
     _check_folder(out)
     if os.path.dirname(report_path) != out:
@@ -416,7 +415,7 @@ def render_frames(args, started, source):
     image = source.load(frames[0])
     settings.plate_image = image
     compositor.setup_from_plate(scene, image)
-    _configure(scene, args)
+    _configure(scene, options)
     _render_settings(scene)
     size = (
         scene.render.resolution_x * scene.render.resolution_percentage // 100,
@@ -424,7 +423,7 @@ def render_frames(args, started, source):
     )
     outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
     _remove_stale(out, [*outputs.values(), report_path])
-    use_passes = not args.no_reflections and passes != 1
+    use_passes = not options.no_reflections and passes != 1
     header = {
         "version": 1,
         "shot": bpy.data.filepath,
@@ -434,7 +433,7 @@ def render_frames(args, started, source):
         "plate_kind": source.kind,
         "out": out,
         "format": fmt,
-        "requested": args.frames if getattr(args, "frames", None) is not None else None,
+        "requested": options.frames,
         "blender": bpy.app.version_string,
         "render": {
             "engine": scene.render.engine,
@@ -442,7 +441,7 @@ def render_frames(args, started, source):
             "samples": scene.cycles.samples if scene.render.engine == "CYCLES" else None,
         },
         "reflections": {
-            "enabled": not args.no_reflections,
+            "enabled": not options.no_reflections,
             "passes": passes if use_passes else 1,
             "passes_requested": passes,
             "smoothing": settings.smoothing,
@@ -458,8 +457,8 @@ def render_frames(args, started, source):
     ctx = _Context(scene)
     objects = []
     warnings = []
-    if not args.no_reflections:
-        objects = _objects(scene, args.objects)
+    if not options.no_reflections:
+        objects = _objects(scene, options.objects)
         if not objects:
             raise ValueError("no object to reflect the plate (use --objects or mark objects)")
         if use_passes:
@@ -468,6 +467,7 @@ def render_frames(args, started, source):
     entries = {}
     filters = {}
     step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
+    job = FrameJob(scene, ctx, source, fmt, objects, filters, step, use_passes, options)
     with sequence.suspended():
         if objects and not use_passes:
             # Attach first (at the first frame), so skipped and pre-rolled frames can step the
@@ -488,7 +488,7 @@ def render_frames(args, started, source):
         for i, frame in enumerate(frames, 1):
             t0 = time.perf_counter()
             path = outputs[frame]
-            if not getattr(args, "overwrite", False) and _complete(path, size):
+            if not options.overwrite and _complete(path, size):
                 entry = dict(previous.get(frame, {"frame": frame, "outputs": [path]}))
                 entry["status"] = "skipped"
                 if objects and not use_passes:
@@ -501,9 +501,7 @@ def render_frames(args, started, source):
                 _write_json(report_path, _report(header, entries, frames, warnings, started))
                 continue
             try:
-                entry = _render_frame(
-                    scene, ctx, source, frame, path, fmt, objects, filters, step, use_passes, args
-                )
+                entry = job.render(frame, path)
             except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
                 raise BatchError(f"frame {frame}: {exc}") from exc
             entries[frame] = entry
@@ -535,98 +533,118 @@ def _report(header, entries, frames, warnings, started, complete=False):
     }
 
 
-def _render_frame(scene, ctx, source, frame, path, fmt, objects, filters, step, use_passes, args):
-    """One frame: plate, maps, render, composite written atomically; returns its report entry."""
-    times = {}
-    warnings = []
+@dataclass(frozen=True, eq=False)
+class FrameJob:
+    """What is the same for every frame of a run; `render(frame, path)` renders one frame.
 
-    def timed(stage, t):
-        times[stage] = round(times.get(stage, 0.0) + time.perf_counter() - t, 4)
+    ``filters``: the bounds filters sequence.update steps (shared with the run's pre-roll and
+    skipped frames); ``objects``: empty without reflections; ``use_passes``: --passes."""
 
-    t = time.perf_counter()
-    scene.frame_set(frame)
-    timed("frame_set", t)
-    t = time.perf_counter()
-    image = source.load(frame)
-    pixels, info = generate.plate_pixels(scene, image)
-    plate_file = source.file(frame)
-    timed("plate", t)
-    entry = {"frame": frame, "status": "rendered", "plate": plate_file}
-    changes = {}
-    pass_reports = []
-    if use_passes:
+    scene: object
+    context: _Context
+    source: PlateSource
+    format: str  # a key of FORMATS
+    objects: list
+    filters: dict
+    step: int
+    use_passes: bool
+    options: BatchOptions
+
+    def render(self, frame, path):
+        """One frame: plate, maps, render, composite written atomically; returns its report
+        entry."""
+        scene, source, objects, options = self.scene, self.source, self.objects, self.options
+        times = {}
+        warnings = []
+
+        def timed(stage, t):
+            times[stage] = round(times.get(stage, 0.0) + time.perf_counter() - t, 4)
+
         t = time.perf_counter()
-        comp, rgba, reports = interreflect.render_passes(
-            ctx,
-            objects,
-            pixels,
-            args.passes,
-            getattr(args, "tolerance", None) or interreflect.TOLERANCE,
-            getattr(args, "max_passes", None) or interreflect.R_MAX,
-        )
-        timed("passes", t)
-        pass_reports = [_pass_report(r) for r in reports]
-        for r in reports:
-            warnings += list(getattr(r, "warnings", ()) or ())
-        summary = f"{len(reports)} pass(es)"
-    else:
-        if objects:
-            identity = (plate_file, frame if source.kind == "movie" else None)
-            depsgraph = bpy.context.evaluated_depsgraph_get()
-            update = sequence.update(
-                scene,
-                depsgraph,
-                filters=filters,
-                frame=frame,
-                step=step,
-                plate=(pixels, info, plate_file, identity),
-            )
-            for stage, seconds in update.timings.items():
-                times[stage] = round(times.get(stage, 0.0) + seconds, 4)
-            warnings += update.warnings
-            changes = {
-                "maps_updated": update.maps,
-                "maps_unchanged": update.unchanged,
-                "tables_built": update.tables["built"],
-                "tables_reused": update.tables["reused"],
-                "bounds": {k: list(v) for k, v in update.boxes.items()},
-                "raw_bounds": {k: [round(x, 3) for x in v] for k, v in update.raw.items()},
-            }
-            summary = f"{len(update.maps)} map(s) updated"
-        else:
-            summary = "no reflections"
+        scene.frame_set(frame)
+        timed("frame_set", t)
         t = time.perf_counter()
-        render_path = os.path.splitext(_temp(path, "render"))[0] + ".exr"
-        scene.render.filepath = render_path
-        try:
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-            timed("render", t)
+        image = source.load(frame)
+        pixels, info = generate.plate_pixels(scene, image)
+        plate_file = source.file(frame)
+        timed("plate", t)
+        entry = {"frame": frame, "status": "rendered", "plate": plate_file}
+        changes = {}
+        pass_reports = []
+        if self.use_passes:
             t = time.perf_counter()
-            rgba = read_rgba(render_path)
+            comp, rgba, reports = interreflect.render_passes(
+                self.context,
+                objects,
+                pixels,
+                options.passes,
+                options.tolerance or interreflect.TOLERANCE,
+                options.max_passes or interreflect.R_MAX,
+            )
+            timed("passes", t)
+            pass_reports = [_pass_report(r) for r in reports]
+            for r in reports:
+                warnings += list(getattr(r, "warnings", ()) or ())
+            summary = f"{len(reports)} pass(es)"
+        else:
+            if objects:
+                identity = (plate_file, frame if source.kind == "movie" else None)
+                depsgraph = bpy.context.evaluated_depsgraph_get()
+                update = sequence.update(
+                    scene,
+                    depsgraph,
+                    filters=self.filters,
+                    frame=frame,
+                    step=self.step,
+                    plate=(pixels, info, plate_file, identity),
+                )
+                for stage, seconds in update.timings.items():
+                    times[stage] = round(times.get(stage, 0.0) + seconds, 4)
+                warnings += update.warnings
+                changes = {
+                    "maps_updated": update.maps,
+                    "maps_unchanged": update.unchanged,
+                    "tables_built": update.tables["built"],
+                    "tables_reused": update.tables["reused"],
+                    "bounds": {k: list(v) for k, v in update.boxes.items()},
+                    "raw_bounds": {k: [round(x, 3) for x in v] for k, v in update.raw.items()},
+                }
+                summary = f"{len(update.maps)} map(s) updated"
+            else:
+                summary = "no reflections"
+            t = time.perf_counter()
+            render_path = os.path.splitext(_temp(path, "render"))[0] + ".exr"
+            scene.render.filepath = render_path
+            try:
+                bpy.ops.render.render(write_still=True, scene=scene.name)
+                timed("render", t)
+                t = time.perf_counter()
+                rgba = read_rgba(render_path)
+            finally:
+                if os.path.exists(render_path):
+                    os.remove(render_path)
+            comp = compositor.composite_over_plate(rgba, _fit(pixels, rgba.shape))
+            timed("composite", t)
+        t = time.perf_counter()
+        temp = _temp(path)
+        try:
+            _save(scene, comp, temp, FORMATS[self.format])
+            os.replace(temp, path)
         finally:
-            if os.path.exists(render_path):
-                os.remove(render_path)
-        comp = compositor.composite_over_plate(rgba, _fit(pixels, rgba.shape))
-        timed("composite", t)
-    t = time.perf_counter()
-    temp = _temp(path)
-    try:
-        _save(scene, comp, temp, FORMATS[fmt])
-        os.replace(temp, path)
-    finally:
-        if os.path.exists(temp):
-            os.remove(temp)
-    timed("write", t)
-    times["total"] = round(sum(v for k, v in times.items()), 4)
-    entry.update(
-        {
-            "outputs": [path],
-            "times": times,
-            "passes": len(pass_reports) or 1,
-            "pass_reports": pass_reports,
-            "changes": changes,
-            "warnings": warnings,
-            "summary": summary + f", render {times.get('render', times.get('passes', 0.0)):.2f} s",
-        }
-    )
-    return entry
+            if os.path.exists(temp):
+                os.remove(temp)
+        timed("write", t)
+        times["total"] = round(sum(v for k, v in times.items()), 4)
+        entry.update(
+            {
+                "outputs": [path],
+                "times": times,
+                "passes": len(pass_reports) or 1,
+                "pass_reports": pass_reports,
+                "changes": changes,
+                "warnings": warnings,
+                "summary": summary
+                + f", render {times.get('render', times.get('passes', 0.0)):.2f} s",
+            }
+        )
+        return entry

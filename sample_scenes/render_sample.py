@@ -28,7 +28,6 @@ import re
 import sys
 import tempfile
 import time
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -105,6 +104,22 @@ def renderer_quiet(enabled=True):
                     print(line, flush=True)
 
 
+def batch_options(options_type, kind, built, work_dir, reflections, *, scale=50, samples=16):
+    """The batch's options (``options_type``: the add-on's operators.batch_options.BatchOptions)
+    for rendering scene ``kind`` as ``built`` without or with virtual reflections into
+    ``work_dir``; the output stem is ``<kind>_without`` or ``<kind>_with``."""
+    return options_type(
+        plate=built.plate_path,
+        out=str(work_dir),
+        objects=tuple(o.name for o in built.objects),
+        combine=built.combine,
+        samples=samples,
+        scale=scale,
+        no_reflections=not reflections,
+        name=f"{kind}_{'with' if reflections else 'without'}",
+    )
+
+
 def render_pair(
     addon,
     kind,
@@ -126,6 +141,7 @@ def render_pair(
 
     build_scenes = load_build_scenes()
     batch = import_module(addon.__name__ + ".operators.batch")
+    BatchOptions = import_module(addon.__name__ + ".operators.batch_options").BatchOptions
     imagefiles = import_module(addon.__name__ + ".virtual_reflections.imagefiles")
     clock = clock or Clock()
 
@@ -142,26 +158,13 @@ def render_pair(
     )
     composites = []
     for reflections in (False, True):
-        name = f"{kind}_{'with' if reflections else 'without'}"
-        args = SimpleNamespace(
-            blend=None,
-            plate=built.plate_path,
-            out=str(work_dir),
-            objects=[o.name for o in built.objects],
-            combine=built.combine,
-            resolution=None,
-            triangles=None,
-            frame=None,
-            engine=None,
-            samples=samples,
-            scale=scale,
-            no_reflections=not reflections,
-            name=name,
+        options = batch_options(
+            BatchOptions, kind, built, work_dir, reflections, scale=scale, samples=samples
         )
-        clock(f"{name}: rendering")
+        clock(f"{options.name}: rendering")
         with renderer_quiet(quiet):
-            batch.render_shot(args, clock.started)
-        path = os.path.join(work_dir, f"{name}_composite.exr")
+            batch.render_shot(options, clock.started)
+        path = os.path.join(work_dir, f"{options.name}_composite.exr")
         composites.append(imagefiles.read_plate(path).pixels)
     return composites[0], composites[1], built
 

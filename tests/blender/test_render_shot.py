@@ -59,6 +59,8 @@ def test_render_shot_writes_render_and_composite(shot, tmp_path):
         (("--plate", "{tmp}/missing.jpg", "--out", "{tmp}/o"), "plate not found"),
         (("{tmp}/nope.blend", "--plate", PLATE, "--out", "{tmp}/o"), "shot not found"),
         (("--plate", PLATE, "--out", "{tmp}/o", "--objects", "Nobody"), "no object named"),
+        (("--plate", PLATE, "--out", "{tmp}/o", "--frame", 1, "--frames", "1-2"), "not both"),
+        (("--plate", PLATE, "--out", "{tmp}/o", "--resolution", 300), "--resolution must be"),
     ],
 )
 def test_render_shot_bad_input(shot, tmp_path, args, message):
@@ -79,11 +81,25 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
     render_shot = importlib.import_module("render_shot")
     settings = bpy.context.scene.virtual_reflections
     base = ["--plate", str(PLATE), "--out", str(tmp_path)]
+
+    def options(*argv):
+        return render_shot.batch_options(addon, render_shot.parse([*base, *argv]))
+
     for given, expected in (("camera", "CAMERA"), ("paper", "PAPER")):
-        batch._configure(bpy.context.scene, render_shot.parse([*base, "--method", given]))
+        batch._configure(bpy.context.scene, options("--method", given))
         assert settings.method == expected
-    batch._configure(bpy.context.scene, render_shot.parse(base))
+    batch._configure(bpy.context.scene, options())
     assert settings.method == "PAPER"  # kept, not reset to the default (Camera View)
     with pytest.raises(SystemExit) as bad:
         render_shot.parse([*base, "--method", "nope"])
     assert bad.value.code == 2
+
+
+def test_batch_takes_batch_options(addon, tmp_path):
+    """The batch reads a BatchOptions, not a namespace of whatever attributes it has."""
+    import importlib
+    from types import SimpleNamespace
+
+    batch = importlib.import_module(f"{addon.__name__}.operators.batch")
+    with pytest.raises(TypeError, match="BatchOptions"):
+        batch.render_shot(SimpleNamespace(plate=str(PLATE), out=str(tmp_path)), 0.0)

@@ -82,7 +82,8 @@ def _map(plate, hfov=60.0, width=256, **kw):
 
 
 def _texel(direction, width):
-    """(row, column) of the lat-long texel holding camera-frame `direction` (docs/conventions.md)."""
+    """(row, column) of the lat-long texel holding camera-frame `direction`
+    (docs/conventions.md)."""
     d = np.asarray(direction, float) / np.linalg.norm(direction)
     lat, lon = math.asin(d[1]), math.atan2(d[0], d[2])
     row = int((0.5 - lat / math.pi) * (width // 2))

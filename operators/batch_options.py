@@ -1,0 +1,143 @@
+"""The headless batch's options (render_shot.py, operators/batch.py), typed and checked once.
+
+`BatchOptions` holds every option the batch reads, each with render_shot's command-line
+default; `BatchOptions.from_namespace` builds it from render_shot's argparse namespace and
+sample_scenes/render_sample.py constructs it directly. The values are checked in
+`__post_init__`: bad input is one ValueError of one line, before anything is opened or written.
+
+No bpy here (nor NumPy): the module loads on its own, outside Blender, e.g. for tests.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import sys
+from dataclasses import dataclass, fields
+
+try:
+    from ..virtual_reflections.frames import parse_frames
+except ImportError:  # loaded on its own (not as part of the extension): the file beside it
+    _name = "vr_batch_options_frames"
+    if _name not in sys.modules:
+        _path = os.path.join(os.path.dirname(__file__), "..", "virtual_reflections", "frames.py")
+        _spec = importlib.util.spec_from_file_location(_name, os.path.abspath(_path))
+        sys.modules[_name] = importlib.util.module_from_spec(_spec)
+        _spec.loader.exec_module(sys.modules[_name])
+    parse_frames = sys.modules[_name].parse_frames
+
+COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
+METHODS = ("camera", "paper")
+ENGINES = ("CYCLES", "EEVEE")
+FORMATS = ("exr", "png")
+RESOLUTIONS = (256, 512, 1024, 2048, 4096)  # the lat-long widths of ui/properties.py
+MAX_SMOOTHING = 0.95
+
+
+def _words(choices):
+    """("a", "b", "c") -> "a, b or c"."""
+    choices = [str(c) for c in choices]
+    return ", ".join(choices[:-1]) + " or " + choices[-1] if len(choices) > 1 else choices[0]
+
+
+def _is_int(value):
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """Every option of the headless batch. The defaults are render_shot's (argparse's):
+    None means "not given, keep the shot's own setting"."""
+
+    plate: str  # a still image, a sequence pattern (plate.####.exr) or a movie
+    out: str  # the output folder (created)
+    blend: str | None = None  # the shot to open; None: the file already open
+    objects: tuple[str, ...] | None = None  # None: marked objects, else visible mesh-likes
+    combine: str | None = None  # REPLACE, MODULATE, MIX or WORLD
+    resolution: int | None = None  # lat-long map width
+    triangles: int | None = None  # 0: continuous front face
+    method: str | None = None  # camera or paper
+    frame: int | None = None  # one frame of the scene
+    engine: str | None = None  # CYCLES or EEVEE
+    samples: int | None = None  # render samples (0: the shot's)
+    scale: int | None = None  # resolution percentage (0: the shot's)
+    passes: int | str = 1  # inter-reflection passes >= 1, or "auto"
+    tolerance: float | None = None  # passes "auto": stop below (None or 0: interreflect's)
+    max_passes: int | None = None  # passes "auto": at most (None or 0: interreflect's)
+    no_reflections: bool = False  # the plain render, for comparisons
+    name: str | None = None  # output file stem; None: the .blend's name
+    frames: str | None = None  # a range: 1-240, 1-10x2, 5 or 1,3,7-9
+    format: str = "exr"  # a frame range's output: exr or png
+    overwrite: bool = False  # render frames that are already complete again
+    report: str | None = None  # report path; None: OUT/<name>.report.json
+    smoothing: float | None = None  # bounds smoothing over frames, 0..0.95
+
+    @classmethod
+    def from_namespace(cls, namespace):
+        """From render_shot's argparse namespace (its attributes are exactly these fields)."""
+        return cls(**vars(namespace))
+
+    def __post_init__(self):
+        for key in ("plate", "out", "blend", "name", "report"):
+            value = getattr(self, key)
+            if isinstance(value, os.PathLike):
+                object.__setattr__(self, key, value := os.fspath(value))
+            if value is None and key not in ("plate", "out"):
+                continue
+            if not isinstance(value, str):
+                raise ValueError(f"--{key} must be text, not {value!r}")
+        if self.objects is not None:
+            if isinstance(self.objects, str) or not all(isinstance(n, str) for n in self.objects):
+                raise ValueError(f"--objects must be a list of object names, not {self.objects!r}")
+            object.__setattr__(self, "objects", tuple(self.objects))
+        for key, choices in (
+            ("combine", COMBINES),
+            ("method", METHODS),
+            ("engine", ENGINES),
+            ("format", FORMATS),
+        ):
+            value = getattr(self, key)
+            if (value is not None or key == "format") and value not in choices:
+                raise ValueError(f"--{key} must be {_words(choices)}, not {value!r}")
+        if self.resolution is not None and self.resolution not in RESOLUTIONS:
+            raise ValueError(f"--resolution must be {_words(RESOLUTIONS)}, not {self.resolution!r}")
+        for key in ("triangles", "samples", "scale", "max_passes"):
+            value = getattr(self, key)
+            if value is not None and not (_is_int(value) and value >= 0):
+                raise ValueError(f"--{key.replace('_', '-')} must be a number >= 0, not {value!r}")
+        if self.frame is not None and not _is_int(self.frame):
+            raise ValueError(f"--frame must be a frame number, not {self.frame!r}")
+        if self.passes != "auto" and not (_is_int(self.passes) and self.passes >= 1):
+            raise ValueError(
+                f"--passes: expected a number of passes >= 1 or auto, not {self.passes!r}"
+            )
+        if self.tolerance is not None:
+            if not (_is_number(self.tolerance) and self.tolerance >= 0):
+                raise ValueError(f"--tolerance must be a number >= 0, not {self.tolerance!r}")
+            object.__setattr__(self, "tolerance", float(self.tolerance))
+        if self.smoothing is not None:
+            if not (_is_number(self.smoothing) and 0.0 <= self.smoothing <= MAX_SMOOTHING):
+                raise ValueError(
+                    f"--smoothing: expected a number from 0 to {MAX_SMOOTHING}, "
+                    f"not {self.smoothing!r}"
+                )
+            object.__setattr__(self, "smoothing", float(self.smoothing))
+        for key in ("no_reflections", "overwrite"):
+            if not isinstance(getattr(self, key), bool):
+                raise ValueError(
+                    f"--{key.replace('_', '-')} is on or off, not {getattr(self, key)!r}"
+                )
+        if self.frames is not None:
+            if self.frame is not None:
+                raise ValueError("give --frame or --frames, not both")
+            if not isinstance(self.frames, str):
+                raise ValueError(f"--frames must be a range like 1-240, not {self.frames!r}")
+            parse_frames(self.frames)  # ValueError naming the bad part, one line
+
+
+FIELDS = tuple(f.name for f in fields(BatchOptions))

@@ -1,0 +1,172 @@
+"""The headless batch's options (operators/batch_options.py), without bpy: render_shot's
+defaults, one-line checks, immutability, and render_sample building them."""
+
+import dataclasses
+import importlib.util
+import pathlib
+import subprocess
+import sys
+import textwrap
+from types import SimpleNamespace
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+BASE = ["--plate", "plate.exr", "--out", "out"]
+
+
+def _load(name, path):
+    """A file of the repository as a module of its own (the extension package imports bpy)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, ROOT / path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+@pytest.fixture(scope="module")
+def batch_options():
+    return _load("vr_test_batch_options", "operators/batch_options.py")
+
+
+@pytest.fixture(scope="module")
+def render_shot():
+    return _load("vr_test_render_shot", "render_shot.py")
+
+
+def test_no_bpy_needed():
+    """render_shot.parse and BatchOptions work where importing bpy fails."""
+    code = textwrap.dedent(
+        f"""
+        import importlib.util, sys
+        sys.modules["bpy"] = None  # import bpy raises ImportError
+        def load(name, path):
+            spec = importlib.util.spec_from_file_location(name, {str(ROOT)!r} + "/" + path)
+            module = sys.modules[name] = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+            return module
+        render_shot = load("render_shot", "render_shot.py")
+        batch_options = load("batch_options", "operators/batch_options.py")
+        args = render_shot.parse({BASE!r} + ["--frames", "1-3"])
+        print(batch_options.BatchOptions.from_namespace(args).frames)
+        """
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == "1-3", r.stderr
+
+
+def test_defaults_are_render_shots(batch_options, render_shot):
+    BatchOptions = batch_options.BatchOptions
+    namespace = render_shot.parse(BASE)
+    # Every option render_shot parses is a field, and the other way round.
+    assert set(vars(namespace)) == set(batch_options.FIELDS)
+    options = BatchOptions.from_namespace(namespace)
+    assert options == BatchOptions(plate="plate.exr", out="out")
+    for field in dataclasses.fields(BatchOptions):
+        assert getattr(options, field.name) == getattr(namespace, field.name), field.name
+        if field.default is not dataclasses.MISSING:
+            assert field.default == getattr(namespace, field.name), field.name
+    assert options.passes == 1 and options.format == "exr" and options.objects is None
+    assert options.no_reflections is False and options.overwrite is False
+
+
+def test_from_namespace_keeps_every_value(batch_options, render_shot):
+    argv = [
+        *BASE,
+        "shot.blend",
+        *("--objects", "A", "B", "--combine", "MIX", "--resolution", "512"),
+        *("--triangles", "0", "--method", "paper", "--engine", "EEVEE", "--samples", "8"),
+        *("--scale", "25", "--passes", "auto", "--tolerance", "0.01", "--max-passes", "4"),
+        *("--no-reflections", "--name", "n", "--frames", "1-10x2", "--format", "png"),
+        *("--overwrite", "--report", "r.json", "--smoothing", "0.9"),
+    ]
+    options = batch_options.BatchOptions.from_namespace(render_shot.parse(argv))
+    assert options.blend == "shot.blend" and options.objects == ("A", "B")
+    assert (options.combine, options.resolution, options.triangles) == ("MIX", 512, 0)
+    assert (options.method, options.engine, options.samples, options.scale) == (
+        "paper",
+        "EEVEE",
+        8,
+        25,
+    )
+    assert (options.passes, options.tolerance, options.max_passes) == ("auto", 0.01, 4)
+    assert options.no_reflections and options.overwrite and options.name == "n"
+    assert (options.frames, options.format, options.report) == ("1-10x2", "png", "r.json")
+    assert options.smoothing == 0.9 and options.frame is None
+
+
+def test_frozen(batch_options):
+    options = batch_options.BatchOptions(plate="p", out="o", objects=["A"])
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        options.plate = "other"
+    assert options.objects == ("A",)  # a tuple: nothing inside changes either
+    assert hash(options) == hash(batch_options.BatchOptions(plate="p", out="o", objects=("A",)))
+    changed = dataclasses.replace(options, frame=3)
+    assert changed.frame == 3 and options.frame is None
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"frame": 1, "frames": "1-3"}, "give --frame or --frames, not both"),
+        ({"format": "tif"}, "--format must be exr or png, not 'tif'"),
+        ({"frames": "3-1"}, "bad frame range '3-1'"),
+        ({"frames": "1-"}, "bad frame range '1-'"),
+        ({"passes": 0}, "expected a number of passes >= 1 or auto, not 0"),
+        ({"passes": "some"}, "expected a number of passes >= 1 or auto"),
+        ({"smoothing": 0.99}, "expected a number from 0 to 0.95, not 0.99"),
+        ({"combine": "ADD"}, "--combine must be REPLACE, MODULATE, MIX or WORLD, not 'ADD'"),
+        ({"method": "CAMERA"}, "--method must be camera or paper"),
+        ({"engine": "WORKBENCH"}, "--engine must be CYCLES or EEVEE"),
+        ({"resolution": 300}, "--resolution must be 256, 512, 1024, 2048 or 4096, not 300"),
+        ({"samples": -1}, "--samples must be a number >= 0"),
+        ({"scale": 12.5}, "--scale must be a number >= 0"),
+        ({"max_passes": -2}, "--max-passes must be a number >= 0"),
+        ({"tolerance": -0.1}, "--tolerance must be a number >= 0"),
+        ({"frame": "7"}, "--frame must be a frame number"),
+        ({"objects": "Sphere"}, "--objects must be a list of object names"),
+        ({"overwrite": "yes"}, "--overwrite is on or off"),
+        ({"plate": None}, "--plate must be text"),
+    ],
+)
+def test_bad_values_are_one_line(batch_options, changes, message):
+    values = {"plate": "p", "out": "o", **changes}
+    with pytest.raises(ValueError) as bad:
+        batch_options.BatchOptions(**values)
+    text = str(bad.value)
+    assert message in text and "\n" not in text
+
+
+def test_paths_become_text(batch_options, tmp_path):
+    options = batch_options.BatchOptions(plate=tmp_path / "p.exr", out=tmp_path, report=tmp_path)
+    assert options.plate == str(tmp_path / "p.exr") and options.out == str(tmp_path)
+    assert isinstance(options.report, str)
+
+
+def test_render_samples_options_are_batch_options(batch_options):
+    render_sample = _load("vr_test_render_sample_options", "sample_scenes/render_sample.py")
+    built = SimpleNamespace(
+        plate_path="/plates/courtyard.exr",
+        objects=[SimpleNamespace(name="Sphere"), SimpleNamespace(name="Cube")],
+        combine="MIX",
+    )
+    BatchOptions = batch_options.BatchOptions
+    made = [
+        render_sample.batch_options(BatchOptions, "spheres", built, "/w", r, scale=10, samples=4)
+        for r in (False, True)
+    ]
+    assert all(isinstance(o, BatchOptions) for o in made)
+    without, with_ = made
+    assert (without.name, with_.name) == ("spheres_without", "spheres_with")
+    assert without.no_reflections and not with_.no_reflections
+    assert with_ == dataclasses.replace(without, no_reflections=False, name="spheres_with")
+    assert with_.objects == ("Sphere", "Cube") and with_.combine == "MIX"
+    assert (with_.plate, with_.out, with_.scale, with_.samples) == (
+        "/plates/courtyard.exr",
+        "/w",
+        10,
+        4,
+    )
+    # The rest as render_shot leaves it by default.
+    assert (with_.passes, with_.frames, with_.frame, with_.resolution) == (1, None, None, None)
