@@ -24,7 +24,10 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import compositor, generate, interreflect, sequence
+from ..virtual_reflections.composite import over, resize_nearest
+from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
+from ..virtual_reflections.imagefiles import read_rgba, write_rgba
+from . import compositor, generate, interreflect, plate, sequence, shading
 from .batch_options import BatchOptions
 
 ENGINES = {"CYCLES": ("CYCLES",), "EEVEE": ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")}
@@ -48,41 +51,19 @@ def _objects(scene, names):
             raise ValueError(f"no object named {missing[0]!r} in scene {scene.name!r}")
         return [scene.objects[n] for n in names]
     marked = [
-        o for o in scene.objects if o.type in generate.REFLECTABLE and o.virtual_reflections.enabled
+        o for o in scene.objects if o.type in shading.REFLECTABLE and o.virtual_reflections.enabled
     ]
     if marked:
         return marked
-    return [o for o in scene.objects if o.type in generate.REFLECTABLE and o.visible_get()]
-
-
-class _Context:
-    """The bits of bpy.context that generate() reads, for a given scene."""
-
-    def __init__(self, scene):
-        self.scene = scene
-
-    def evaluated_depsgraph_get(self):
-        return bpy.context.evaluated_depsgraph_get()
+    return [o for o in scene.objects if o.type in shading.REFLECTABLE and o.visible_get()]
 
 
 def load_plate(path):
     if not os.path.isfile(path):
         raise ValueError(f"plate not found: {path}")
     image = bpy.data.images.load(os.path.abspath(path), check_existing=True)
-    compositor.plate_image_pixels(image)  # raises a clear ValueError for unreadable plates
+    plate.image_pixels(image)  # raises a clear ValueError for unreadable plates
     return image
-
-
-def read_rgba(path):
-    """(H, W, 4) float32 pixels of an image file, top row first (Blender stores bottom-up)."""
-    image = bpy.data.images.load(path, check_existing=False)
-    try:
-        w, h = image.size
-        buf = np.empty(w * h * 4, np.float32)
-        image.pixels.foreach_get(buf)
-    finally:
-        bpy.data.images.remove(image)
-    return buf.reshape(h, w, 4)[::-1]
 
 
 def _save(scene, pixels_rgb, path, fmt):
@@ -168,8 +149,8 @@ def render_shot(options: BatchOptions, started):
     passes = options.passes
     if not options.no_reflections and passes != 1:
         render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
-        comp = interreflect.render_shot_passes(
-            _Context(scene),
+        comp = _render_shot_passes(
+            scene,
             _objects(scene, options.objects),
             passes,
             render_path,
@@ -182,7 +163,7 @@ def render_shot(options: BatchOptions, started):
         objects = _objects(scene, options.objects)
         if not objects:
             raise ValueError("no object to reflect the plate (use --objects or mark objects)")
-        report = generate.generate(_Context(scene), objects)
+        report = generate.generate(scene, bpy.context.evaluated_depsgraph_get(), objects)
         for warning in report.warnings:
             print(f"[{stamp()}] warning: {warning}")
         if not report.done:
@@ -198,8 +179,8 @@ def render_shot(options: BatchOptions, started):
 
     t = time.perf_counter()
     rgba = read_rgba(render_path)
-    plate, _ = generate.plate_pixels(scene, image)
-    comp = compositor.composite_over_plate(rgba, _fit(plate, rgba.shape))
+    pixels, _ = plate.pixels(scene, image)
+    comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
     _save_composite(scene, comp, options.out, name, stamp, t)
     return 0
 
@@ -214,13 +195,22 @@ def _render_settings(scene):
     settings_img.color_depth = "32"
 
 
-def _fit(plate, shape):
-    """The plate scaled (nearest) to a render of ``shape`` (resolution percentage)."""
-    if plate.shape[:2] == tuple(shape[:2]):
-        return plate
-    ys = (np.arange(shape[0]) + 0.5) * plate.shape[0] / shape[0]
-    xs = (np.arange(shape[1]) + 0.5) * plate.shape[1] / shape[1]
-    return plate[ys.astype(int)][:, xs.astype(int)]
+def _render_shot_passes(scene, objects, passes, render_path, log=print):
+    """``--passes`` for one frame: `interreflect.render_passes` on the scene's plate, the last
+    render written to ``render_path`` (RGBA float EXR, scene-linear), one log line per pass.
+    Returns the (h, w, 3) float32 composite."""
+    if not objects:
+        raise ValueError("no object to reflect the plate (use --objects or mark objects)")
+    pixels, _ = plate.pixels(scene)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    composite, rgba, reports = interreflect.render_passes(scene, depsgraph, objects, pixels, passes)
+    for warning in reports[0].warnings:
+        log(f"warning: {warning}")
+    for report in reports:
+        log(report.line())
+    log(f"{len(reports)} pass(es) in {sum(r.seconds for r in reports):.2f} s")
+    write_rgba(render_path, rgba)
+    return composite
 
 
 def _save_composite(scene, comp, out, name, stamp, t):
@@ -252,9 +242,9 @@ class PlateSource:
 
     def __init__(self, text):
         self.text = text
-        if sequence.is_pattern(text):
+        if is_pattern(text):
             self.kind = "sequence"
-        elif sequence.is_movie_path(text):
+        elif is_movie_path(text):
             self.kind = "movie"
         else:
             self.kind = "still"
@@ -262,7 +252,7 @@ class PlateSource:
 
     def file(self, frame):
         if self.kind == "sequence":
-            return os.path.abspath(sequence.pattern_path(self.text, frame))
+            return os.path.abspath(pattern_path(self.text, frame))
         return os.path.abspath(self.text)
 
     def check(self, frames):
@@ -302,7 +292,7 @@ class PlateSource:
 def _frames(options: BatchOptions, scene):
     """The frames to render (BatchOptions refused --frame with --frames)."""
     if options.frames is not None:
-        return sequence.parse_frames(options.frames)
+        return parse_frames(options.frames)
     if options.frame is not None:
         return [options.frame]
     return list(range(scene.frame_start, scene.frame_end + 1, max(1, scene.frame_step)))
@@ -454,7 +444,6 @@ def render_frames(options: BatchOptions, started, source):
         f"render {size[0]}x{size[1]} with {scene.render.engine}, out {out}"
     )
     previous = _read_report(report_path)
-    ctx = _Context(scene)
     objects = []
     warnings = []
     if not options.no_reflections:
@@ -467,14 +456,14 @@ def render_frames(options: BatchOptions, started, source):
     entries = {}
     filters = {}
     step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
-    job = FrameJob(scene, ctx, source, fmt, objects, filters, step, use_passes, options)
+    job = FrameJob(scene, source, fmt, objects, filters, step, use_passes, options)
     with sequence.suspended():
         if objects and not use_passes:
             # Attach first (at the first frame), so skipped and pre-rolled frames can step the
             # bounds filters: a resumed run and a farm chunk then match one uninterrupted run.
-            pixels, _ = generate.plate_pixels(scene, image)
+            pixels, _ = plate.pixels(scene, image)
             plate_shape = pixels.shape
-            attached = generate.generate(ctx, objects)
+            attached = generate.generate(scene, bpy.context.evaluated_depsgraph_get(), objects)
             warnings += attached.warnings
             if not attached.done:
                 raise ValueError("no reflection generated: " + "; ".join(attached.warnings))
@@ -541,7 +530,6 @@ class FrameJob:
     skipped frames); ``objects``: empty without reflections; ``use_passes``: --passes."""
 
     scene: object
-    context: _Context
     source: PlateSource
     format: str  # a key of FORMATS
     objects: list
@@ -565,7 +553,7 @@ class FrameJob:
         timed("frame_set", t)
         t = time.perf_counter()
         image = source.load(frame)
-        pixels, info = generate.plate_pixels(scene, image)
+        pixels, info = plate.pixels(scene, image)
         plate_file = source.file(frame)
         timed("plate", t)
         entry = {"frame": frame, "status": "rendered", "plate": plate_file}
@@ -574,7 +562,8 @@ class FrameJob:
         if self.use_passes:
             t = time.perf_counter()
             comp, rgba, reports = interreflect.render_passes(
-                self.context,
+                scene,
+                bpy.context.evaluated_depsgraph_get(),
                 objects,
                 pixels,
                 options.passes,
@@ -584,7 +573,7 @@ class FrameJob:
             timed("passes", t)
             pass_reports = [_pass_report(r) for r in reports]
             for r in reports:
-                warnings += list(getattr(r, "warnings", ()) or ())
+                warnings += list(r.warnings)
             summary = f"{len(reports)} pass(es)"
         else:
             if objects:
@@ -596,7 +585,7 @@ class FrameJob:
                     filters=self.filters,
                     frame=frame,
                     step=self.step,
-                    plate=(pixels, info, plate_file, identity),
+                    plate_frame=plate.PlateFrame(pixels, info, plate_file, identity),
                 )
                 for stage, seconds in update.timings.items():
                     times[stage] = round(times.get(stage, 0.0) + seconds, 4)
@@ -623,7 +612,7 @@ class FrameJob:
             finally:
                 if os.path.exists(render_path):
                     os.remove(render_path)
-            comp = compositor.composite_over_plate(rgba, _fit(pixels, rgba.shape))
+            comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
             timed("composite", t)
         t = time.perf_counter()
         temp = _temp(path)

@@ -5,33 +5,23 @@ default; `BatchOptions.from_namespace` builds it from render_shot's argparse nam
 sample_scenes/render_sample.py constructs it directly. The values are checked in
 `__post_init__`: bad input is one ValueError of one line, before anything is opened or written.
 
-No bpy here (nor NumPy): the module loads on its own, outside Blender, e.g. for tests.
+No bpy here: nothing but the values and their checks.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
-import sys
 from dataclasses import dataclass, fields
 
-try:
-    from ..virtual_reflections.frames import parse_frames
-except ImportError:  # loaded on its own (not as part of the extension): the file beside it
-    _name = "vr_batch_options_frames"
-    if _name not in sys.modules:
-        _path = os.path.join(os.path.dirname(__file__), "..", "virtual_reflections", "frames.py")
-        _spec = importlib.util.spec_from_file_location(_name, os.path.abspath(_path))
-        sys.modules[_name] = importlib.util.module_from_spec(_spec)
-        _spec.loader.exec_module(sys.modules[_name])
-    parse_frames = sys.modules[_name].parse_frames
+from ..virtual_reflections.frames import parse_frames
+from ..virtual_reflections.mapsize import WIDTHS
 
 COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
 METHODS = ("camera", "paper")
 ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
-RESOLUTIONS = (256, 512, 1024, 2048, 4096)  # the lat-long widths of ui/properties.py
+RESOLUTIONS = WIDTHS
 MAX_SMOOTHING = 0.95
 
 

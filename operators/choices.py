@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import bpy
 
-from ..virtual_reflections.mapsize import auto_map_width
+from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
 
 ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
 
@@ -55,7 +55,7 @@ RESOLUTION_ITEMS = (
     ),
 ) + tuple(
     (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
-    for w in (256, 512, 1024, 2048, 4096)
+    for w in WIDTHS
 )
 MAP_STORAGE_ITEMS = (
     ("PACK", "Pack into .blend", "Maps are packed into the .blend file when it is saved"),

@@ -16,6 +16,7 @@ import math
 
 MIN_WIDTH = 256
 MAX_WIDTH = 4096
+WIDTHS = (256, 512, 1024, 2048, 4096)  # the lat-long widths an artist can choose
 
 
 def auto_map_width(object_px: float, minimum: int = MIN_WIDTH, maximum: int = MAX_WIDTH) -> int:

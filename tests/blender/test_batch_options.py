@@ -1,5 +1,5 @@
-"""The headless batch's options (operators/batch_options.py), without bpy: render_shot's
-defaults, one-line checks, immutability, and render_sample building them."""
+"""The headless batch's options (operators/batch_options.py): render_shot's defaults, one-line
+checks, immutability, and render_sample building them. render_shot.parse needs no bpy."""
 
 import dataclasses
 import importlib.util
@@ -10,13 +10,14 @@ import textwrap
 from types import SimpleNamespace
 
 import pytest
+from shots import addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 BASE = ["--plate", "plate.exr", "--out", "out"]
 
 
 def _load(name, path):
-    """A file of the repository as a module of its own (the extension package imports bpy)."""
+    """A file of the repository as a module of its own (a script, not part of the add-on)."""
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, ROOT / path)
         module = importlib.util.module_from_spec(spec)
@@ -27,7 +28,7 @@ def _load(name, path):
 
 @pytest.fixture(scope="module")
 def batch_options():
-    return _load("vr_test_batch_options", "operators/batch_options.py")
+    return addon_part("operators.batch_options")
 
 
 @pytest.fixture(scope="module")
@@ -35,21 +36,17 @@ def render_shot():
     return _load("vr_test_render_shot", "render_shot.py")
 
 
-def test_no_bpy_needed():
-    """render_shot.parse and BatchOptions work where importing bpy fails."""
+def test_parse_needs_no_bpy():
+    """render_shot.parse works where importing bpy fails (one-line errors before Blender)."""
     code = textwrap.dedent(
         f"""
         import importlib.util, sys
         sys.modules["bpy"] = None  # import bpy raises ImportError
-        def load(name, path):
-            spec = importlib.util.spec_from_file_location(name, {str(ROOT)!r} + "/" + path)
-            module = sys.modules[name] = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(module)
-            return module
-        render_shot = load("render_shot", "render_shot.py")
-        batch_options = load("batch_options", "operators/batch_options.py")
-        args = render_shot.parse({BASE!r} + ["--frames", "1-3"])
-        print(batch_options.BatchOptions.from_namespace(args).frames)
+        path = {str(ROOT / "render_shot.py")!r}
+        spec = importlib.util.spec_from_file_location("render_shot", path)
+        render_shot = sys.modules["render_shot"] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(render_shot)
+        print(render_shot.parse({BASE!r} + ["--frames", "1-3"]).frames)
         """
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
