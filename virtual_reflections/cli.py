@@ -4,13 +4,13 @@
         [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG]
         [--method paper|frustum] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
-    python -m virtual_reflections bench [--repeat N] [--chart PNG]
-    python -m virtual_reflections evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
 sRGB-encoded .png/.jpg/.tif). Bad input prints one line on stderr and exits with code 2,
 without a traceback and without leaving a partial output file.
+
+The accuracy study and the speed benchmark are not part of the engine: `python -m study`.
 """
 
 from __future__ import annotations
@@ -92,19 +92,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--float", action="store_true", help="write EXR as 32-bit float (default half)")
     p = sub.add_parser("segment", help="draw the paper's segmentation over the plate")
     _add_map_options(p)
-    p = sub.add_parser("bench", help="time table building and applying against py360convert")
-    p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
-    p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
-    p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
-    p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        help="write DIR/accuracy.json, DIR/images/accuracy_*.png and the tables of "
-        "DIR/accuracy.md (default: docs; with --quick nothing unless given)",
-    )
-    p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
     return parser
 
 
@@ -174,21 +161,8 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "envmap":
             run_envmap(args)
-        elif args.command == "segment":
-            run_segment(args)
-        elif args.command == "evaluate":
-            from .evaluate import StudyInputError, run_command
-
-            try:
-                run_command(quick=args.quick, out=args.out, hdris=args.hdri, jobs=args.jobs)
-            except StudyInputError as exc:
-                raise UsageError(str(exc)) from exc
         else:
-            from .bench import run_bench, run_sweep
-
-            run_bench(repeat=args.repeat)
-            if args.chart:
-                run_sweep(args.chart)
+            run_segment(args)
     except (UsageError, ImageError) as exc:
         print(f"virtual_reflections: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -7,7 +7,15 @@ import pytest
 
 from virtual_reflections import Params, environment_map
 from virtual_reflections.frustum import plate_positions
-from virtual_reflections.panorama import camera_frame_directions
+
+
+def camera_frame_directions(width, height, hfov_deg):
+    """Unit pinhole directions (H, W, 3) of the plate's pixel centres in the camera frame
+    (docs/conventions.md: +Z the plate's centre, +Y up, +X the plate's left)."""
+    f = 0.5 * width / math.tan(math.radians(hfov_deg) / 2.0)
+    py, px = np.mgrid[0:height, 0:width] + 0.5
+    d = np.stack([-(px - 0.5 * width) / f, -(py - 0.5 * height) / f, np.ones(px.shape)], -1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def test_pixel_directions_land_on_their_pixels():
@@ -82,7 +90,8 @@ def _map(plate, hfov=60.0, width=256, **kw):
 
 
 def _texel(direction, width):
-    """(row, column) of the lat-long texel holding camera-frame `direction` (docs/conventions.md)."""
+    """(row, column) of the lat-long texel holding camera-frame `direction`
+    (docs/conventions.md)."""
     d = np.asarray(direction, float) / np.linalg.norm(direction)
     lat, lon = math.asin(d[1]), math.atan2(d[0], d[2])
     row = int((0.5 - lat / math.pi) * (width // 2))

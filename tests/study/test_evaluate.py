@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from virtual_reflections import cli
-from virtual_reflections.evaluate import baselines as B
-from virtual_reflections.evaluate import metrics as M
-from virtual_reflections.evaluate import spheres as S
-from virtual_reflections.evaluate import study
+from study import cli
+from study.evaluate import baselines as B
+from study.evaluate import metrics as M
+from study.evaluate import spheres as S
+from study.evaluate import study
 
 RNG = np.random.default_rng(5)
 
@@ -276,7 +276,7 @@ def test_the_claims_of_the_docs_hold_on_the_quick_subset(quick):
     """docs/accuracy.md lists these claims (study.CLAIMS), measured on the full run; the quick
     subset must agree, or the docs say something the code no longer does."""
     if quick.default is None:
-        pytest.skip("no engine method registered in virtual_reflections.methods")
+        pytest.skip("no engine method registered in study.methods")
     claims = study.check_claims(quick)
     assert claims, "no claims checked"
     failed = [claim for claim, holds in claims if not holds]

@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from ..colour import linear_to_srgb
+from virtual_reflections.colour import linear_to_srgb
+
 from ..panorama import focal_length_pixels
 from .spheres import latlong_directions
 

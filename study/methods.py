@@ -2,14 +2,14 @@
 
 METHODS maps a name to `fn(plate_linear (H, W, 3), bbox, hfov_deg, width) -> (width/2, width, 3)`
 float32 lat-long in the camera frame (docs/conventions.md). The accuracy study
-(`python -m virtual_reflections evaluate`) charts them against each other; "frustum" (the
+(`python -m study evaluate`) charts them against each other; "frustum" (the
 add-on's Camera View, with Params' defaults) is the product's default.
 """
 
 from __future__ import annotations
 
-from .envmap import environment_map
-from .params import Params
+from virtual_reflections.envmap import environment_map
+from virtual_reflections.params import Params
 
 
 def _engine(**kwargs):
