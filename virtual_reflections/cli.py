@@ -1,9 +1,14 @@
 """Command line — a pipeline contract, keep it stable:
 
     python -m virtual_reflections envmap PLATE -o OUT --bbox X0 Y0 X1 Y1 [--layout latlong|cube]
-        [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG]
-        [--method paper|frustum] [--float]
+        [--width W] [--method camera|paper] [--hfov DEG] [--triangles N] [--enlarge F]
+        [--border F] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
+
+--method camera (the default, the add-on's Camera View and the accuracy study's best) places
+the plate by the plate camera's horizontal field of view, --hfov DEG, which it needs; --method
+paper is Ropinski et al. 2004 (--triangles, --enlarge, --border; --hfov ignored). `frustum` is
+accepted as an older name of `camera`. segment draws the paper's regions whatever the method.
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
@@ -21,7 +26,7 @@ import time
 
 from .envmap import DEFAULT_SIZE
 from .imagefiles import ImageError, check_writable, read_plate, write_map
-from .params import Params
+from .params import METHOD_ALIASES, METHODS, Params
 
 EXIT_BAD_INPUT = 2
 
@@ -72,12 +77,20 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         default=Params.border,
         help="minimum distance of X from the border, fraction (default 0.15)",
     )
-    p.add_argument("--hfov", type=float, default=None, help="horizontal field of view (degrees)")
+    p.add_argument(
+        "--hfov",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="the plate camera's horizontal field of view in degrees (needed by --method camera)",
+    )
     p.add_argument(
         "--method",
-        choices=("paper", "frustum"),
-        default="paper",
-        help="paper: Ropinski et al. 2004; frustum: place the plate by --hfov",
+        choices=METHODS + tuple(METHOD_ALIASES),
+        metavar="{camera,paper}",
+        default="camera",
+        help="camera (default): the plate placed by --hfov, unseen directions filled from its "
+        "edges (the add-on's Camera View); paper: Ropinski et al. 2004; frustum: same as camera",
     )
 
 
@@ -95,17 +108,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _params(args) -> Params:
+def _params(args, method=None) -> Params:
+    """Params from the options; `method` overrides --method (segment: the paper's regions)."""
     x0, y0, x1, y1 = args.bbox
     if not (x0 < x1 and y0 < y1):
         raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
+    method = method or METHOD_ALIASES.get(args.method, args.method)
+    if method == "camera" and args.hfov is None:
+        raise UsageError(
+            "--method camera needs --hfov DEG (the plate camera's horizontal field of view); "
+            "or use --method paper"
+        )
     try:
         return Params(
             enlarge=args.enlarge,
             border=args.border,
             triangles=args.triangles,
             hfov=args.hfov,
-            method=args.method,
+            method=method,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
@@ -144,7 +164,7 @@ def run_segment(args) -> None:
     from .overlay import draw_segmentation
     from .segmentation import segment
 
-    params = _params(args)
+    params = _params(args, method="paper")  # the regions are the paper's whatever --method says
     check_writable(args.output)
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]
