@@ -12,7 +12,8 @@ Writes (sRGB PNGs, each well under 300 KB):
   ``python -m virtual_reflections segment PLATE -o OUT --bbox X0 Y0 X1 Y1 --triangles 32``
   and lettered;
 - ``map_latlong.png`` and ``map_cube.png``: that map (n = 32) from
-  ``python -m virtual_reflections envmap``, as a lat-long and as a labelled cube cross.
+  ``python -m virtual_reflections envmap --method paper``, as a lat-long and as a labelled
+  cube cross.
   (The sample renders use the add-on's default, the continuous front face.)
 
 The cube cross is seen from inside the cube, the back face +Z (what the plate sees behind the
@@ -199,7 +200,8 @@ def main(argv=None):
             written.append(path)
 
             latlong = os.path.join(work, "latlong.exr")
-            clock(engine_cli("envmap", plate_path, "-o", latlong, *box, "--width", 1024))
+            paper = ("--method", "paper")  # the engine CLI's default is Camera View
+            clock(engine_cli("envmap", plate_path, "-o", latlong, *box, *paper, "--width", 1024))
             picture = resize(imagefiles.read_plate(latlong).pixels, 640)
             for fx, label in LATLONG_LABELS:
                 x = min(max(4, round(fx * 640 - 3.2 * len(label))), 640 - 7 * len(label))
@@ -210,7 +212,7 @@ def main(argv=None):
 
             strip = os.path.join(work, "cube.exr")
             cube = ("--layout", "cube", "--width", 160)
-            clock(engine_cli("envmap", plate_path, "-o", strip, *box, *cube))
+            clock(engine_cli("envmap", plate_path, "-o", strip, *box, *paper, *cube))
             cross = cube_cross(imagefiles.read_plate(strip).pixels)
             s = cross.shape[1] // 4
             for (col, row), label in CROSS_LABELS:

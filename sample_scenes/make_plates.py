@@ -33,7 +33,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # a script run from the checkout, not part of the extension
     sys.path.insert(0, str(ROOT))
 imagefiles = importlib.import_module("virtual_reflections.imagefiles")
-panorama = importlib.import_module("virtual_reflections.panorama")
+panorama = importlib.import_module("study.panorama")
 
 WIDTH, HEIGHT = 1280, 720
 HFOV_DEG = 60.0

@@ -1,16 +1,21 @@
 """Command line — a pipeline contract, keep it stable:
 
     python -m virtual_reflections envmap PLATE -o OUT --bbox X0 Y0 X1 Y1 [--layout latlong|cube]
-        [--width W] [--triangles N] [--enlarge F] [--border F] [--hfov DEG]
-        [--method paper|frustum] [--float]
+        [--width W] [--method camera|paper] [--hfov DEG] [--triangles N] [--enlarge F]
+        [--border F] [--float]
     python -m virtual_reflections segment PLATE -o OVERLAY.png --bbox X0 Y0 X1 Y1 [same options]
-    python -m virtual_reflections bench [--repeat N] [--chart PNG]
-    python -m virtual_reflections evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
+
+--method camera (the default, the add-on's Camera View and the accuracy study's best) places
+the plate by the plate camera's horizontal field of view, --hfov DEG, which it needs; --method
+paper is Ropinski et al. 2004 (--triangles, --enlarge, --border; --hfov ignored). `frustum` is
+accepted as an older name of `camera`. segment draws the paper's regions whatever the method.
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
 sRGB-encoded .png/.jpg/.tif). Bad input prints one line on stderr and exits with code 2,
 without a traceback and without leaving a partial output file.
+
+The accuracy study and the speed benchmark are not part of the engine: `python -m study`.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import time
 
 from .envmap import DEFAULT_SIZE
 from .imagefiles import ImageError, check_writable, read_plate, write_map
-from .params import Params
+from .params import METHOD_ALIASES, METHODS, Params
 
 EXIT_BAD_INPUT = 2
 
@@ -72,12 +77,20 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         default=Params.border,
         help="minimum distance of X from the border, fraction (default 0.15)",
     )
-    p.add_argument("--hfov", type=float, default=None, help="horizontal field of view (degrees)")
+    p.add_argument(
+        "--hfov",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="the plate camera's horizontal field of view in degrees (needed by --method camera)",
+    )
     p.add_argument(
         "--method",
-        choices=("paper", "frustum"),
-        default="paper",
-        help="paper: Ropinski et al. 2004; frustum: place the plate by --hfov",
+        choices=METHODS + tuple(METHOD_ALIASES),
+        metavar="{camera,paper}",
+        default="camera",
+        help="camera (default): the plate placed by --hfov, unseen directions filled from its "
+        "edges (the add-on's Camera View); paper: Ropinski et al. 2004; frustum: same as camera",
     )
 
 
@@ -92,33 +105,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--float", action="store_true", help="write EXR as 32-bit float (default half)")
     p = sub.add_parser("segment", help="draw the paper's segmentation over the plate")
     _add_map_options(p)
-    p = sub.add_parser("bench", help="time table building and applying against py360convert")
-    p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
-    p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
-    p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
-    p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        help="write DIR/accuracy.json, DIR/images/accuracy_*.png and the tables of "
-        "DIR/accuracy.md (default: docs; with --quick nothing unless given)",
-    )
-    p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
     return parser
 
 
-def _params(args) -> Params:
+def _params(args, method=None) -> Params:
+    """Params from the options; `method` overrides --method (segment: the paper's regions)."""
     x0, y0, x1, y1 = args.bbox
     if not (x0 < x1 and y0 < y1):
         raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
+    method = method or METHOD_ALIASES.get(args.method, args.method)
+    if method == "camera" and args.hfov is None:
+        raise UsageError(
+            "--method camera needs --hfov DEG (the plate camera's horizontal field of view); "
+            "or use --method paper"
+        )
     try:
         return Params(
             enlarge=args.enlarge,
             border=args.border,
             triangles=args.triangles,
             hfov=args.hfov,
-            method=args.method,
+            method=method,
         )
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
@@ -157,7 +164,7 @@ def run_segment(args) -> None:
     from .overlay import draw_segmentation
     from .segmentation import segment
 
-    params = _params(args)
+    params = _params(args, method="paper")  # the regions are the paper's whatever --method says
     check_writable(args.output)
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]
@@ -174,21 +181,8 @@ def main(argv=None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "envmap":
             run_envmap(args)
-        elif args.command == "segment":
-            run_segment(args)
-        elif args.command == "evaluate":
-            from .evaluate import StudyInputError, run_command
-
-            try:
-                run_command(quick=args.quick, out=args.out, hdris=args.hdri, jobs=args.jobs)
-            except StudyInputError as exc:
-                raise UsageError(str(exc)) from exc
         else:
-            from .bench import run_bench, run_sweep
-
-            run_bench(repeat=args.repeat)
-            if args.chart:
-                run_sweep(args.chart)
+            run_segment(args)
     except (UsageError, ImageError) as exc:
         print(f"virtual_reflections: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

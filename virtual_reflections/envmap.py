@@ -13,8 +13,8 @@ import threading
 
 import numpy as np
 
+from .camera_view import FILL_BINS, fill_profile
 from .colour import clean_plate
-from .frustum import FILL_BINS, fill_profile
 from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
 from .params import Params

@@ -10,7 +10,8 @@ import math
 from dataclasses import dataclass
 
 MAX_TRIANGLES = 1024
-METHODS = ("paper", "frustum")
+METHODS = ("paper", "camera")
+METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
 
 
 @dataclass(frozen=True)
@@ -22,12 +23,14 @@ class Params:
     triangles: n triangles for the front face (a multiple of 4, 4..1024), or 0 for the
                continuous limit n -> infinity.
     hfov:      horizontal field of view of the plate's camera in degrees, or None. The
-               paper's method ignores it; the frustum method needs it.
-    method:    "paper" (Ropinski et al. 2004, §3.1–3.2) or "frustum" (frustum.py: the plate
-               placed exactly by the camera's field of view, blurred edge extension outside).
-    extend_blur, extend_cap: the frustum method's blur outside the plate's view — pixels of
+               paper's method ignores it; the camera-view method needs it (or `intrinsics`).
+    method:    "paper" (Ropinski et al. 2004, §3.1–3.2) or "camera" (camera_view.py, the
+               add-on's Camera View: the plate placed exactly by the camera's field of view,
+               blurred edge extension and fill outside). "frustum", its earlier name, is
+               accepted and stored as "camera".
+    extend_blur, extend_cap: the camera-view method's blur outside the plate's view — pixels of
                blur per pixel of angular distance, and its cap as a share of the plate height.
-    extend_fade: degrees from the plate's frustum over which the frustum method's edge
+    extend_fade: degrees from the plate's view over which the camera-view method's edge
                extension fades (a smoothstep in angle) into the fill, or None to extend the
                edges into every unseen direction (the previous default). 20 (the default) is
                the accuracy study's choice (docs/accuracy.md).
@@ -46,7 +49,7 @@ class Params:
                but darker than the light the plate holds), 1 the arithmetic mean's luminance
                (the plate's energy), between their geometric blend (0.5, the default).
     intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
-               aspect), for the frustum method; overrides hfov.
+               aspect), for the camera-view method; overrides hfov.
     """
 
     enlarge: float = 0.075
@@ -79,6 +82,9 @@ class Params:
             )
         if self.hfov is not None and not (math.isfinite(self.hfov) and 0.0 < self.hfov < 180.0):
             raise ValueError(f"hfov must be between 0 and 180 degrees, got {self.hfov}")
+        if isinstance(self.method, str) and self.method in METHOD_ALIASES:
+            # frozen: normalised once here, so equal params hash (and cache) alike
+            object.__setattr__(self, "method", METHOD_ALIASES[self.method])
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if not (0.0 <= self.extend_blur <= 100.0 and 0.0 < self.extend_cap <= 1.0):
@@ -104,5 +110,7 @@ class Params:
             or self.intrinsics[1] <= 0
         ):
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
-        if self.method == "frustum" and self.hfov is None and self.intrinsics is None:
-            raise ValueError("the frustum method needs the camera's field of view (hfov)")
+        if self.method == "camera" and self.hfov is None and self.intrinsics is None:
+            raise ValueError(
+                "the camera method needs the plate camera's field of view (hfov or intrinsics)"
+            )

@@ -10,13 +10,13 @@ one texel, from the positions half a texel to either side) picks a mip level, so
 large plate region is squeezed onto few texels (the ring F on the front face, the front
 face's centre in the continuous limit) each texel averages the area it covers.
 
-The frustum method (frustum.py) has three groups of texels, each with its own number of
-taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps), those near
-the plate's frustum (8 trilinear taps of the blurred edge extension, faded into the fill's
-taps) and the rest (the fill's taps only: 2, interpolating the profile by elevation, or 4 with
-`fill_sides`, the left and the right profile weighted by `frustum.side_weight`). The fill
-profiles are computed per frame and stored after the pyramid, so they are one more block of
-rows the same gathers read.
+The camera-view method (camera_view.py) has three groups of texels, each with its own
+number of taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps),
+those near the plate's view (8 trilinear taps of the blurred edge extension, faded into the
+fill's taps) and the rest (the fill's taps only: 2, interpolating the profile by elevation, or
+4 with `fill_sides`, the left and the right profile weighted by `camera_view.side_weight`).
+The fill profiles are computed per frame and stored after the pyramid, so they are one more
+block of rows the same gathers read.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import frustum
+from . import camera_view
 from .layouts import map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import for_blocks
@@ -60,13 +60,13 @@ class LookupTable:
     # texel in order). `groups`: further (texels, index (n, K), weight (n, K)) with other K.
     texels: np.ndarray | None = None
     groups: tuple = ()
-    fill: Fill | None = None  # the frustum method's fill profile, computed per frame
+    fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
 
 
 @dataclass(frozen=True, eq=False)
 class Fill:
-    """Where the frustum method's fill profile comes from (frustum.fill_geometry) and goes:
-    computed on pyramid level `level`, written to rows `base` .. `base` + FILL_BINS - 1."""
+    """Where the camera-view method's fill profile comes from (camera_view.fill_geometry) and
+    goes: computed on pyramid level `level`, written to rows `base` .. `base` + FILL_BINS - 1."""
 
     level: int
     base: int
@@ -162,18 +162,18 @@ def _frozen(*arrays):
             a.flags.writeable = False
 
 
-def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
-    """The frustum method's table (see the module docstring and frustum.py)."""
+def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
+    """The camera-view method's table (see the module docstring and camera_view.py)."""
     shape = map_shape(layout, size)
     width, height = seg.width, seg.height
-    intrinsics = params.intrinsics or frustum.intrinsics_from_hfov(width, height, params.hfov)
+    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
     directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     count = directions.shape[0]
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
 
     def project(a, b):
-        position[a:b], angle[a:b] = frustum.clamp_to_frustum(
+        position[a:b], angle[a:b] = camera_view.clamp_to_view(
             directions[a:b], width, height, intrinsics
         )
 
@@ -187,13 +187,13 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
     )
     lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
 
-    seen, rect = frustum.seen_footprints(layout, size, directions, width, height, intrinsics)
-    seen_level = frustum.supersample_levels(rect, shapes)
+    seen, rect = camera_view.seen_footprints(layout, size, directions, width, height, intrinsics)
+    seen_level = camera_view.supersample_levels(rect, shapes)
     unseen = np.ones(count, bool)
     unseen[seen] = False
     filled = params.extend_fade is not None
     weight_ext = (
-        frustum.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
+        camera_view.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
     )
     near = np.flatnonzero(unseen & (weight_ext > 0))
     far = np.flatnonzero(unseen & (weight_ext <= 0))
@@ -202,7 +202,7 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
         int(lod[near].max()) + 1 if near.size else 0,
         int(seen_level.max()) if seen.size else 0,
     ]
-    level_fill = frustum.fill_level(shapes) if filled else None
+    level_fill = camera_view.fill_level(shapes) if filled else None
     if filled:
         used.append(level_fill)
         deepest.append(level_fill)
@@ -212,7 +212,7 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
     fill = None
     if filled:
         sides = 2 if params.fill_sides else 1
-        bins, window, counts = frustum.fill_geometry(
+        bins, window, counts = camera_view.fill_geometry(
             shapes[level_fill],
             level_fill,
             intrinsics,
@@ -231,10 +231,10 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
             window,
             counts,
         )
-        side = frustum.side_weight(directions, intrinsics, width) if sides == 2 else None
+        side = camera_view.side_weight(directions, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
-    # Near the frustum: the blurred edge extension (8 trilinear taps) faded into the fill.
+    # Near the plate's view: the blurred edge extension (8 trilinear taps) faded into the fill.
     fill_taps = 0 if not filled else 2 * fill.sides
     taps = 8 + fill_taps
     near_index = np.empty((near.size, taps), np.int32)
@@ -250,14 +250,14 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
     for_blocks(trilinear, near.size)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
     if filled:
-        fill_index, fill_weight = frustum.fill_taps(
+        fill_index, fill_weight = camera_view.fill_taps(
             directions[near], fill.base, None if side is None else side[near]
         )
         near_index[:, 8:] = fill_index
         near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
     groups = []
     if seen.size:
-        seen_index, seen_weight = frustum.supersample_taps(
+        seen_index, seen_weight = camera_view.supersample_taps(
             layout, size, seen, intrinsics, seen_level, shapes, offsets
         )
         groups.append((seen, seen_index, seen_weight))
@@ -265,7 +265,9 @@ def _build_frustum(seg: Segmentation, layout: str, size: int, params: Params) ->
         groups.append(
             (
                 far,
-                *frustum.fill_taps(directions[far], fill.base, None if side is None else side[far]),
+                *camera_view.fill_taps(
+                    directions[far], fill.base, None if side is None else side[far]
+                ),
             )
         )
     for g in groups:
@@ -293,8 +295,8 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     Params (or, for the paper's method, just the number of triangles)."""
     if not isinstance(params, Params):
         params = Params(triangles=int(params))
-    if params.method == "frustum":
-        return _build_frustum(seg, layout, size, params)
+    if params.method == "camera":
+        return _build_camera_view(seg, layout, size, params)
     shape = map_shape(layout, size)
     directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     count = directions.shape[0]
@@ -341,11 +343,11 @@ def lookup_table(
 ) -> LookupTable:
     """The cached table for a W x H plate, object `bbox` (x0, y0, x1, y1), params and layout.
 
-    The frustum method's table depends on the camera, not on where the object is: one is
+    The camera-view method's table depends on the camera, not on where the object is: one is
     built per plate size, camera and layout and shared by every object and pose (each gets
     its own segmentation, which only the paper's method and the add-on's advice read)."""
     seg = segment(width, height, bbox, params)
-    if params.method == "frustum":
+    if params.method == "camera":
         return dataclasses.replace(
             _camera_table(width, height, params, layout, size), segmentation=seg
         )
@@ -354,6 +356,6 @@ def lookup_table(
 
 @functools.lru_cache(maxsize=4)
 def _camera_table(width: int, height: int, params: Params, layout: str, size: int) -> LookupTable:
-    """The frustum method's table: it reads only the plate's size from the segmentation."""
+    """The camera-view method's table: it reads only the plate's size from the segmentation."""
     centre = (width / 2 - 1, height / 2 - 1, width / 2 + 1, height / 2 + 1)
     return build_table(segment(width, height, centre, params), layout, size, params)

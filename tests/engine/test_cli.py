@@ -12,6 +12,9 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+PAPER = ("--method", "paper")
+
+
 def run(*args):
     return subprocess.run(
         [sys.executable, "-m", "virtual_reflections", *map(str, args)],
@@ -63,8 +66,8 @@ def test_envmap_writes_each_format(plate, tmp_path):
             0.05,
             "--border",
             0.1,
-            "--hfov",
-            60,
+            "--method",
+            "paper",
         )
         assert r.returncode == 0, r.stderr
         spec = oiio.ImageInput.open(str(tmp_path / name)).spec()
@@ -84,15 +87,19 @@ def test_segment_writes_an_overlay(plate, tmp_path):
 @pytest.mark.parametrize(
     "args",
     [
-        ("envmap", "{missing}", "-o", "{out}", "--bbox", 1, 1, 5, 5),
-        ("envmap", "{corrupt}", "-o", "{out}", "--bbox", 1, 1, 5, 5),
-        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 40, 5),  # X0 >= X1
-        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 50, 5),
-        ("envmap", "{plate}", "-o", "{tmp}/m.webpx", "--bbox", 1, 1, 5, 5),
-        ("envmap", "{plate}", "-o", "{tmp}/nowhere/m.exr", "--bbox", 1, 1, 5, 5),
-        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--triangles", 6),
-        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5),
-        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--width", 7),
+        ("envmap", "{missing}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--hfov", 60),
+        ("envmap", "{corrupt}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--hfov", 60),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 40, 5, "--hfov", 60),  # X0 >= X1
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 50, 1, 50, 5, "--method", "paper"),
+        ("envmap", "{plate}", "-o", "{tmp}/m.webpx", "--bbox", 1, 1, 5, 5, "--hfov", 60),
+        ("envmap", "{plate}", "-o", "{tmp}/nowhere/m.exr", "--bbox", 1, 1, 5, 5, "--hfov", 60),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--triangles", 6, *PAPER),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, "--hfov", 60),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--width", 7, *PAPER),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--hfov", 200),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--method", "mirror"),
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5),  # camera without --hfov
+        ("envmap", "{plate}", "-o", "{out}", "--bbox", 1, 1, 5, 5, "--method", "frustum"),
         ("segment", "{missing}", "-o", "{tmp}/s.png", "--bbox", 1, 1, 5, 5),
         ("frobnicate",),
     ],
@@ -120,8 +127,52 @@ def test_unwritable_output_leaves_nothing(plate, tmp_path):
     # Root may write anywhere it has permission bits for; /proc refuses new files to all.
     target = locked if not os.access(locked, os.W_OK) else "/proc"
     try:
-        r = run("envmap", plate, "-o", f"{target}/m.exr", "--bbox", 1, 1, 5, 5)
+        r = run("envmap", plate, "-o", f"{target}/m.exr", "--bbox", 1, 1, 5, 5, "--hfov", 60)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert not os.path.exists(f"{target}/m.exr") and list(locked.iterdir()) == []
     finally:
         locked.chmod(0o700)
+
+
+def read_map(path):
+    return oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)
+
+
+def test_the_default_method_is_camera(plate, tmp_path):
+    common = ("-o", "--bbox", 60, 30, 100, 60, "--width", 64, "--hfov", 60, "--float")
+    maps = {}
+    for name, extra in (("default", ()), ("camera", ("--method", "camera")), ("paper", PAPER)):
+        out = tmp_path / f"{name}.exr"
+        r = run("envmap", plate, common[0], out, *common[1:], *extra)
+        assert r.returncode == 0, r.stderr
+        maps[name] = read_map(out)
+    np.testing.assert_array_equal(maps["default"], maps["camera"])
+    assert np.abs(maps["default"] - maps["paper"]).max() > 0.05
+
+
+def test_frustum_is_an_alias_of_camera(plate, tmp_path):
+    maps = {}
+    for method in ("camera", "frustum"):
+        out = tmp_path / f"{method}.exr"
+        r = run(
+            "envmap", plate, "-o", out, "--bbox", 60, 30, 100, 60, "--width", 64,
+            "--hfov", 55, "--method", method, "--float",
+        )  # fmt: skip
+        assert r.returncode == 0, r.stderr
+        maps[method] = read_map(out)
+    np.testing.assert_array_equal(maps["camera"], maps["frustum"])
+
+
+@pytest.mark.parametrize("method", [(), ("--method", "camera"), ("--method", "frustum")])
+def test_camera_without_hfov_is_one_line_exit_2(plate, tmp_path, method):
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", "--bbox", 60, 30, 100, 60, *method)
+    assert r.returncode == 2
+    (line,) = r.stderr.strip().splitlines()
+    assert "--method camera needs --hfov" in line and "--method paper" in line, line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_segment_needs_no_hfov(plate, tmp_path):
+    """segment draws the paper's regions, so the camera default asks for nothing more."""
+    r = run("segment", plate, "-o", tmp_path / "s.png", "--bbox", 60, 30, 100, 60)
+    assert r.returncode == 0, r.stderr

@@ -40,10 +40,11 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from virtual_reflections.colour import decode_uint, linear_to_srgb
+from virtual_reflections.mapsize import auto_map_width
+
 from .. import panorama
 from ..bench import median_ms
-from ..colour import decode_uint, linear_to_srgb
-from ..mapsize import auto_map_width
 from . import metrics as M
 from . import spheres as S
 from .baselines import Method, all_methods
@@ -800,7 +801,7 @@ def with_hdris(config: Config, names) -> Config:
     return replace(config, hdris=tuple(names))
 
 
-# --- the claims docs/accuracy.md makes (tests/engine/test_evaluate.py checks them on --quick) ---
+# --- the claims docs/accuracy.md makes (tests/study/test_evaluate.py checks them on --quick) ---
 
 
 def _mean(results, comparison, method, metric):

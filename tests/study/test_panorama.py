@@ -11,7 +11,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from virtual_reflections import panorama as P
+from study import panorama as P
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PLATES = ROOT / "sample_scenes" / "plates"

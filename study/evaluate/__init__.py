@@ -8,7 +8,7 @@ surroundings of a plate, and at what cost.
 - `baselines`: the methods compared (baselines, the paper at several n, the engine's own);
 - `charts`: the Pareto chart, accuracy by placement, item 6, and the tables of docs/accuracy.md.
 
-`python -m virtual_reflections evaluate [--quick] [--out DIR] [--hdri NAME ...]` runs it
+`python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]` runs it
 (`run_command`). Pure NumPy + OpenImageIO (matplotlib for the charts); never bpy.
 """
 

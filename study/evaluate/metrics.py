@@ -9,7 +9,7 @@
   peak 1. SSIM as Wang et al. 2004 (Gaussian window sigma 1.5, K1 0.01, K2 0.03), per channel,
   averaged over the masked pixels.
 - `plate_view_mask`: the texels of a lat-long map whose whole footprint lies inside the plate's
-  frustum (the directions the plate itself sees); `psnr` over that mask is the "plate PSNR".
+  view (the directions the plate itself sees); `psnr` over that mask is the "plate PSNR".
 
 Every `mask` is an `(H, W)` bool array selecting the pixels (or texels) that count.
 """
@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from ..colour import linear_to_srgb
+from virtual_reflections.colour import linear_to_srgb
+
 from ..panorama import focal_length_pixels
 from .spheres import latlong_directions
 

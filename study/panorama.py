@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .layouts import map_shape, texel_directions
+from virtual_reflections.layouts import map_shape, texel_directions
 
 __all__ = [
     "blender_equirect_direction",

@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from virtual_reflections import cli
-from virtual_reflections.evaluate import baselines as B
-from virtual_reflections.evaluate import metrics as M
-from virtual_reflections.evaluate import spheres as S
-from virtual_reflections.evaluate import study
+from study import cli
+from study.evaluate import baselines as B
+from study.evaluate import metrics as M
+from study.evaluate import spheres as S
+from study.evaluate import study
 
 RNG = np.random.default_rng(5)
 
@@ -76,16 +76,16 @@ def test_ssim_falls_with_noise_and_structure():
     assert M.ssim(slightly, img) == pytest.approx(M.ssim(img, slightly))
 
 
-def test_plate_view_mask_is_the_plate_frustum():
-    """The texels the plate sees: their share of the sphere is the frustum's solid angle
+def test_plate_view_mask_is_what_the_plate_sees():
+    """The texels the plate sees: their share of the sphere is the plate's solid angle
     (4 asin(sin a sin b) for half-angles a, b), less the one-texel margin."""
     width, w, h, hfov = 512, 640, 360, 60.0
     mask = M.plate_view_mask(width, w, h, hfov)
     half_h = math.radians(hfov) / 2
     half_v = math.atan(math.tan(half_h) * h / w)
-    frustum = 4 * math.asin(math.sin(half_h) * math.sin(half_v))
+    view = 4 * math.asin(math.sin(half_h) * math.sin(half_v))
     seen = float((mask * S.row_solid_angles(width // 2)[:, None]).sum())
-    assert 0.75 * frustum < seen < frustum
+    assert 0.75 * view < seen < view
     assert mask[width // 4, width // 2]  # straight ahead
     assert not mask[width // 4, 0]  # behind the camera
     assert not mask[2, width // 2]  # the zenith
@@ -276,7 +276,7 @@ def test_the_claims_of_the_docs_hold_on_the_quick_subset(quick):
     """docs/accuracy.md lists these claims (study.CLAIMS), measured on the full run; the quick
     subset must agree, or the docs say something the code no longer does."""
     if quick.default is None:
-        pytest.skip("no engine method registered in virtual_reflections.methods")
+        pytest.skip("no engine method registered in study.methods")
     claims = study.check_claims(quick)
     assert claims, "no claims checked"
     failed = [claim for claim, holds in claims if not holds]

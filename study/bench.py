@@ -1,4 +1,4 @@
-"""`python -m virtual_reflections bench`: median timings and a peer measured in the same run.
+"""`python -m study bench`: median timings and a peer measured in the same run.
 
 Figures: building the lookup table and applying it, for a 1920x1080 plate to a 1024x512
 lat-long and to 6 x 512^2 cube faces; the peer is py360convert's `c2e` turning the same
@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from .envmap import apply_table
-from .params import Params
-from .segmentation import segment
-from .table import build_table
+from virtual_reflections.envmap import apply_table
+from virtual_reflections.params import Params
+from virtual_reflections.segmentation import segment
+from virtual_reflections.table import build_table
 
 PLATE_W, PLATE_H = 1920, 1080
 BBOX = (760.0, 400.0, 1160.0, 760.0)

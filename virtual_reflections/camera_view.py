@@ -1,4 +1,5 @@
-"""The "frustum" method: use the plate camera's field of view (which Blender knows).
+"""The camera-view method (the add-on's Camera View): use the plate camera's field of view
+(which Blender knows).
 
 The paper (§3.1) ignores the camera: it stretches region X over the whole back face, so what
 lies behind the object lands roughly, not where it really is. With the horizontal field of
@@ -16,8 +17,8 @@ so every direction the plate sees is placed exactly. Three kinds of texel:
   over the texel's footprint, as a renderer supersamples a pixel. (One trilinear tap at the
   footprint's mip level blurs far more: 34 dB against 58 dB where the plate sees, on the
   accuracy study's ground truth; docs/accuracy.md.)
-- **near** (unseen, less than `extend_fade` degrees from the frustum): the direction is
-  clamped, in azimuth and elevation, onto the frustum, and the plate is read there through a
+- **near** (unseen, less than `extend_fade` degrees from the plate's view): the direction is
+  clamped, in azimuth and elevation, onto the plate's view, and the plate is read there through a
   blur that grows with the angle between the direction and its clamped twin — sky continues
   from the top band, ground from the bottom band, the sides from the side bands; the blur is
   capped at a share of the plate height. With the angle this extension fades (a smoothstep)
@@ -59,10 +60,11 @@ def intrinsics_from_hfov(width: int, height: int, hfov_deg: float):
     return f, f, width / 2.0, height / 2.0
 
 
-def clamp_to_frustum(directions, width, height, intrinsics):
+def clamp_to_view(directions, width, height, intrinsics):
     """Camera-frame `directions` (..., 3) clamped in azimuth and elevation onto the plate's
-    frustum: ((..., 2) float32 continuous plate position of the clamped direction, (...,)
-    float32 angle in radians between the direction and its clamped twin; 0 inside)."""
+    view (the directions it sees): ((..., 2) float32 continuous plate position of the clamped
+    direction, (...,) float32 angle in radians between the direction and its clamped twin;
+    0 inside)."""
     fx, fy, cx, cy = intrinsics
     d = np.asarray(directions, dtype=np.float32)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
@@ -81,7 +83,7 @@ def clamp_to_frustum(directions, width, height, intrinsics):
     clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
     cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
     angle = np.arccos(cosine)
-    angle[cosine > 1.0 - 1e-6] = 0.0  # float32 round-off inside the frustum
+    angle[cosine > 1.0 - 1e-6] = 0.0  # float32 round-off inside the plate's view
     return position.astype(np.float32), angle.astype(np.float32)
 
 
@@ -99,11 +101,11 @@ def plate_positions(
     The camera is `intrinsics` = (fx, fy, cx, cy) in plate pixels (a shifted lens, non-square
     pixels), or a centred pinhole of horizontal field of view `hfov_deg`. Returns
     ((..., 2) float32 continuous plate coordinates, (...,) float32 mip level of the blur:
-    log2 of `blur` x (angle to the frustum in radians) x fx pixels, at most
-    log2(max_blur x height)). Inside the frustum the blur level is 0.
+    log2 of `blur` x (angle to the plate's view in radians) x fx pixels, at most
+    log2(max_blur x height)). Inside the plate's view the blur level is 0.
     """
     intrinsics = intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
-    position, angle = clamp_to_frustum(directions, width, height, intrinsics)
+    position, angle = clamp_to_view(directions, width, height, intrinsics)
     pixels = blur * angle * intrinsics[0]
     cap = math.log2(max(max_blur * height, 1.0))
     lod = np.minimum(np.log2(np.maximum(pixels, 1.0)), cap)
@@ -111,7 +113,7 @@ def plate_positions(
 
 
 def fade_weight(angle: np.ndarray, fade_deg: float) -> np.ndarray:
-    """Weight of the edge extension at `angle` (radians) from the frustum: 1 at the frustum,
+    """Weight of the edge extension at `angle` (radians) from the plate's view: 1 at its edge,
     falling with a smoothstep to 0 at `fade_deg` degrees (float32)."""
     if fade_deg <= 0:
         return (angle <= 0).astype(np.float32)

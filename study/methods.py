@@ -2,14 +2,14 @@
 
 METHODS maps a name to `fn(plate_linear (H, W, 3), bbox, hfov_deg, width) -> (width/2, width, 3)`
 float32 lat-long in the camera frame (docs/conventions.md). The accuracy study
-(`python -m virtual_reflections evaluate`) charts them against each other; "frustum" (the
-add-on's Camera View, with Params' defaults) is the product's default.
+(`python -m study evaluate`) charts them against each other; "camera" (the add-on's
+Camera View, with Params' defaults) is the product's default.
 """
 
 from __future__ import annotations
 
-from .envmap import environment_map
-from .params import Params
+from virtual_reflections.envmap import environment_map
+from virtual_reflections.params import Params
 
 
 def _engine(**kwargs):
@@ -24,17 +24,17 @@ METHODS = {
     # the product's default: the edges fade within 20 degrees into a fill by elevation and side
     # (the plate's left half to the left, its right half to the right, both behind), as bright
     # as the geometric mean of the log-average and the mean, its shared tint half kept
-    "frustum": _engine(method="frustum"),
+    "camera": _engine(method="camera"),
     # the previous default: the edges extended into every unseen direction, no fill
-    "frustum, edges only": _engine(method="frustum", extend_fade=None),
+    "camera, edges only": _engine(method="camera", extend_fade=None),
     # the previous fill: by elevation only (left and right mixed), a log-average (darker than
     # the plate's light), fading within 10 degrees, widening toward the whole plate's
-    "frustum, fill by elevation": _engine(
-        method="frustum", extend_fade=10.0, fill_sides=False, fill_energy=0.0, fill_spread=1.0
+    "camera, fill by elevation": _engine(
+        method="camera", extend_fade=10.0, fill_sides=False, fill_energy=0.0, fill_spread=1.0
     ),
     # that fill never widening, with a longer fade
-    "frustum, sharp fill": _engine(
-        method="frustum", extend_fade=20.0, fill_sides=False, fill_energy=0.0, fill_spread=0.0
+    "camera, sharp fill": _engine(
+        method="camera", extend_fade=20.0, fill_sides=False, fill_energy=0.0, fill_spread=0.0
     ),
 }
-DEFAULT = "frustum"
+DEFAULT = "camera"

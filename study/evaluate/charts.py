@@ -466,7 +466,7 @@ def table_targets(results: Results) -> str:
 
 def table_claims(results: Results) -> str:
     lines = [
-        "| claim (checked by tests/engine/test_evaluate.py on the quick subset) | holds here |",
+        "| claim (checked by tests/study/test_evaluate.py on the quick subset) | holds here |",
         "|---|---|",
     ]
     for claim, holds in check_claims(results):

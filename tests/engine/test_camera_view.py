@@ -1,4 +1,5 @@
-"""The frustum method: exact placement by the camera's field of view, blur outside it."""
+"""The camera-view method (Camera View): exact placement by the camera's field of view, the
+edges extended and faded into a fill outside it."""
 
 import math
 
@@ -6,8 +7,16 @@ import numpy as np
 import pytest
 
 from virtual_reflections import Params, environment_map
-from virtual_reflections.frustum import plate_positions
-from virtual_reflections.panorama import camera_frame_directions
+from virtual_reflections.camera_view import plate_positions
+
+
+def camera_frame_directions(width, height, hfov_deg):
+    """Unit pinhole directions (H, W, 3) of the plate's pixel centres in the camera frame
+    (docs/conventions.md: +Z the plate's centre, +Y up, +X the plate's left)."""
+    f = 0.5 * width / math.tan(math.radians(hfov_deg) / 2.0)
+    py, px = np.mgrid[0:height, 0:width] + 0.5
+    d = np.stack([-(px - 0.5 * width) / f, -(py - 0.5 * height) / f, np.ones(px.shape)], -1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def test_pixel_directions_land_on_their_pixels():
@@ -34,7 +43,7 @@ def test_outside_the_view_is_clamped_to_the_nearest_edge_and_blurred():
     assert capped == pytest.approx(math.log2(0.125 * h))
 
 
-def test_frustum_map_reproduces_a_plate_of_the_map():
+def test_camera_map_reproduces_a_plate_of_the_map():
     """A plate rendered from a known lat-long map comes back exactly where the plate sees."""
     from virtual_reflections.layouts import texel_directions
 
@@ -42,7 +51,7 @@ def test_frustum_map_reproduces_a_plate_of_the_map():
     d = camera_frame_directions(w, h, hfov)
     plate = np.stack([0.5 + 0.5 * d[..., 0], 0.5 + 0.5 * d[..., 1], d[..., 2]], -1)
     env = environment_map(
-        plate.astype(np.float32), (0, 0, 1, 1), Params(method="frustum", hfov=hfov), "latlong", 256
+        plate.astype(np.float32), (0, 0, 1, 1), Params(method="camera", hfov=hfov), "latlong", 256
     )
     dirs = texel_directions("latlong", 256)
     inside = (
@@ -54,11 +63,26 @@ def test_frustum_map_reproduces_a_plate_of_the_map():
     assert np.abs(env[inside] - expected[inside]).max() < 0.002
 
 
-def test_frustum_needs_the_field_of_view():
+def test_camera_needs_the_field_of_view():
     with pytest.raises(ValueError, match="field of view"):
-        Params(method="frustum")
+        Params(method="camera")
     with pytest.raises(ValueError, match="method"):
         Params(method="magic")
+
+
+def test_frustum_is_an_alias_of_camera():
+    from virtual_reflections.params import METHODS
+
+    assert METHODS == ("paper", "camera")
+    old, new = Params(method="frustum", hfov=50.0), Params(method="camera", hfov=50.0)
+    assert old.method == "camera" and old == new and hash(old) == hash(new)
+    with pytest.raises(ValueError, match="field of view"):
+        Params(method="frustum")
+    plate = np.random.default_rng(3).random((36, 64, 3), dtype=np.float32)
+    np.testing.assert_array_equal(
+        environment_map(plate, (20, 10, 40, 30), old, "latlong", 64),
+        environment_map(plate, (20, 10, 40, 30), new, "latlong", 64),
+    )
 
 
 def test_shifted_lens_and_non_square_pixels():
@@ -75,7 +99,7 @@ def _map(plate, hfov=60.0, width=256, **kw):
     return environment_map(
         plate.astype(np.float32),
         (0, 0, 1, 1),
-        Params(method="frustum", hfov=hfov, **kw),
+        Params(method="camera", hfov=hfov, **kw),
         "latlong",
         width,
     )
@@ -162,7 +186,7 @@ def test_the_default_keeps_left_on_the_left():
     plate = np.zeros((90, 160, 3), np.float32)
     plate[:, :80] = [1.0, 0.0, 0.0]  # the plate's left half red: +X
     plate[:, 80:] = [0.0, 0.0, 1.0]
-    default = environment_map(plate, (0, 0, 1, 1), Params(method="frustum", hfov=60.0))
+    default = environment_map(plate, (0, 0, 1, 1), Params(method="camera", hfov=60.0))
     for direction in ([1, 0, 0], [1, 0.5, -0.5], [1, -0.3, -1]):
         left = default[_texel(direction, 1024)]
         right = default[_texel([-direction[0], *direction[1:]], 1024)]
@@ -171,7 +195,7 @@ def test_the_default_keeps_left_on_the_left():
     back = default[_texel([0, 0, -1], 1024)]
     assert back[0] == pytest.approx(back[2], rel=0.05)
     edges = environment_map(
-        plate, (0, 0, 1, 1), Params(method="frustum", hfov=60.0, extend_fade=None)
+        plate, (0, 0, 1, 1), Params(method="camera", hfov=60.0, extend_fade=None)
     )
     for direction in ([1, 0, 0], [1, 0.5, -0.5], [1, -0.3, -1]):
         left = edges[_texel(direction, 1024)]
@@ -181,12 +205,12 @@ def test_the_default_keeps_left_on_the_left():
     assert mixed[0] == pytest.approx(mixed[2], rel=0.05)  # the two halves mixed
 
 
-def test_frustum_cube_map_is_finite_and_places_the_plate():
+def test_camera_cube_map_is_finite_and_places_the_plate():
     w, h, hfov = 160, 90, 70.0
     d = camera_frame_directions(w, h, hfov)
     plate = np.stack([0.5 + 0.5 * d[..., 0], 0.5 + 0.5 * d[..., 1], d[..., 2]], -1)
     cube = environment_map(
-        plate.astype(np.float32), (0, 0, 1, 1), Params(method="frustum", hfov=hfov), "cube", 64
+        plate.astype(np.float32), (0, 0, 1, 1), Params(method="camera", hfov=hfov), "cube", 64
     )
     assert cube.shape == (384, 64, 3) and np.isfinite(cube).all()
     front = cube[4 * 64 : 5 * 64]  # +Z: the plate's centre
@@ -203,7 +227,7 @@ def test_new_params_are_validated():
         {"fill_sides": 1},
     ):
         with pytest.raises(ValueError):
-            Params(method="frustum", hfov=60.0, **bad)
+            Params(method="camera", hfov=60.0, **bad)
 
 
 def test_one_camera_table_serves_every_object_position():
@@ -211,7 +235,7 @@ def test_one_camera_table_serves_every_object_position():
     rebuild) but keeps its own segmentation for the advice the add-on gives."""
     from virtual_reflections.table import lookup_table
 
-    params = Params(method="frustum", hfov=55.0)
+    params = Params(method="camera", hfov=55.0)
     a = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), params, "latlong", 64)
     b = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), params, "latlong", 64)
     assert a.index is b.index and a.weight is b.weight

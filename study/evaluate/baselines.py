@@ -1,6 +1,6 @@
 """The methods compared: baselines, the paper's method at several n, and the engine's own.
 
-Every method has one signature, the one `virtual_reflections.methods.METHODS` uses:
+Every method has one signature, the one `study.methods.METHODS` uses:
 
     method(plate_linear, bbox, hfov_deg, width) -> (width/2, width, 3) float32 lat-long
 
@@ -12,16 +12,17 @@ pixels (origin top-left, y down, x1/y1 exclusive); the map is in the camera fram
 from __future__ import annotations
 
 import functools
-import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..envmap import environment_map
-from ..layouts import texel_directions
+from virtual_reflections.envmap import environment_map
+from virtual_reflections.layouts import texel_directions
+from virtual_reflections.params import Params
+
+from .. import methods as engine_configurations
 from ..panorama import focal_length_pixels
-from ..params import Params
 from .spheres import prefilter, resample_latlong
 
 MIDDLE_GREY = 0.18  # scene-linear
@@ -34,7 +35,7 @@ class Method:
     """A map builder under test.
 
     name:   the label in tables and charts (unique).
-    family: "baseline", "paper", "engine" (registered in `virtual_reflections.methods`) or
+    family: "baseline", "paper", "engine" (registered in `study.methods`) or
             "reference" (not a product candidate: shows what a target needs).
     fn:     `fn(plate_linear, bbox, hfov_deg, width) -> (width/2, width, 3)` float32.
     """
@@ -149,20 +150,14 @@ REFERENCES = (Method("exact plate + mean (reference)", "reference", exact_plate_
 
 
 def engine_methods():
-    """`(methods, default_name)` registered by the engine in `virtual_reflections.methods`:
-    its `METHODS` dict (name -> callable with the signature above) if the module exists, and the
-    name of the product's default (`DEFAULT`/`DEFAULT_METHOD` if it says, else "frustum" or
-    "default" when registered). `([], None)` when there is no such module yet."""
-    try:
-        module = importlib.import_module("virtual_reflections.methods")
-    except ImportError:
-        return [], None
-    registered = dict(getattr(module, "METHODS", {}) or {})
+    """`(methods, default_name)`: the engine's configurations registered in `study.methods`
+    (its `METHODS` dict, name -> callable with the signature above, each labelled
+    "engine <name>") and the label of the product's default (`DEFAULT`, or None when that names
+    no registered method)."""
+    registered = dict(engine_configurations.METHODS)
     methods = [Method(f"engine {name}", "engine", fn) for name, fn in registered.items()]
-    default = getattr(module, "DEFAULT", None) or getattr(module, "DEFAULT_METHOD", None)
-    if default not in registered:
-        default = next((n for n in ("default", "frustum") if n in registered), None)
-    return methods, (f"engine {default}" if default else None)
+    default = engine_configurations.DEFAULT
+    return methods, (f"engine {default}" if default in registered else None)
 
 
 def all_methods(triangles=PAPER_TRIANGLES):

@@ -1,0 +1,74 @@
+"""Command line of the study (run from the repository root):
+
+    python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
+    python -m study bench [--repeat N] [--chart PNG]
+
+`evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
+(docs/accuracy.md); `bench` times the engine's lookup tables against py360convert
+(docs/benchmarks.md). Bad input prints one line on stderr and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from virtual_reflections.imagefiles import ImageError
+
+EXIT_BAD_INPUT = 2
+
+
+class UsageError(Exception):
+    """Bad command-line input; the message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit code 2 (argparse prints the usage too)
+        raise UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="python -m study",
+        description="Accuracy and speed of Virtual Reflections' environment maps.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = sub.add_parser("bench", help="time table building and applying against py360convert")
+    p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
+    p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
+    p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
+    p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write DIR/accuracy.json, DIR/images/accuracy_*.png and the tables of "
+        "DIR/accuracy.md (default: docs; with --quick nothing unless given)",
+    )
+    p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
+    return parser
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "evaluate":
+            from .evaluate import StudyInputError, run_command
+
+            try:
+                run_command(quick=args.quick, out=args.out, hdris=args.hdri, jobs=args.jobs)
+            except StudyInputError as exc:
+                raise UsageError(str(exc)) from exc
+        else:
+            from .bench import run_bench, run_sweep
+
+            run_bench(repeat=args.repeat)
+            if args.chart:
+                run_sweep(args.chart)
+    except (UsageError, ImageError) as exc:
+        print(f"study: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("study: interrupted", file=sys.stderr)
+        return 130
+    return 0
