@@ -503,13 +503,13 @@ def test_blender_composite_matches_numpy(
     plate, _ = plates.image_pixels(image)
 
     raw = render_to(scene, tmp_path / "raw.exr", compositing=False)  # Cycles is deterministic
-    composite = render_to(scene, tmp_path / "composite.exr", compositing=True)
-    assert raw.shape == (36, 64, 4) and composite.shape == (36, 64, 4)
+    blended = render_to(scene, tmp_path / "composite.exr", compositing=True)
+    assert raw.shape == (36, 64, 4) and blended.shape == (36, 64, 4)
     alpha = raw[..., 3]
     assert alpha.min() == 0.0 and alpha.max() == 1.0 and ((alpha > 0) & (alpha < 1)).any()
     if user_compositor:  # the user's Exposure node (+1 stop) runs underneath the plate
         raw = raw * np.array([2.0, 2.0, 2.0, 1.0], np.float32)
     expected = composite.over(raw, plate)
     tolerance = 1e-4 if plate_format == "png" else 1e-5  # OCIO's sRGB vs the exact EOTF
-    assert np.abs(composite[..., :3] - expected).max() < tolerance
-    assert np.abs(composite[..., :3] - plate).max() > 0.1  # the plane is really there
+    assert np.abs(blended[..., :3] - expected).max() < tolerance
+    assert np.abs(blended[..., :3] - plate).max() > 0.1  # the plane is really there

@@ -12,7 +12,7 @@ import pathlib
 import numpy as np
 import pytest
 
-from virtual_reflections import panorama
+from study import panorama
 
 bpy = pytest.importorskip("bpy", reason="the bpy module is not installed in this environment")
 oiio = pytest.importorskip("OpenImageIO")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from shots import project_points  # noqa: E402
 
-from virtual_reflections import panorama
+from study import panorama
 
 bpy = pytest.importorskip("bpy", reason="the bpy module is not installed in this environment")
 
