@@ -141,7 +141,9 @@ def median_reports(runs):
 def run(interreflect, scene, objects, plate, passes, clear_tables):
     clear_tables()
     started = time.perf_counter()
-    composite, _, reports = interreflect.render_passes(bpy.context, objects, plate, passes)
+    composite, _, reports = interreflect.render_passes(
+        scene, bpy.context.evaluated_depsgraph_get(), objects, plate, passes
+    )
     return time.perf_counter() - started, composite, reports
 
 
@@ -175,14 +177,14 @@ def measure(addon, build_scenes, render_sample, args):
     from importlib import import_module
 
     interreflect = import_module(addon.__name__ + ".operators.interreflect")
-    generate = import_module(addon.__name__ + ".operators.generate")
+    plates = import_module(addon.__name__ + ".operators.plate")
     engine = import_module(addon.__name__ + ".virtual_reflections")
     quiet = render_sample.renderer_quiet
 
     with quiet():
         scene, objects = build_scene(build_scenes, args.scale, args.samples)
     settings = scene.virtual_reflections
-    plate, _ = generate.plate_pixels(scene, settings.plate_image)
+    plate, _ = plates.pixels(scene)
     w = scene.render.resolution_x * scene.render.resolution_percentage // 100
     h = scene.render.resolution_y * scene.render.resolution_percentage // 100
     print(f"Machine: {machine()}; load average {os.getloadavg()[0]:.1f}")
@@ -192,7 +194,7 @@ def measure(addon, build_scenes, render_sample, args):
         f"medians of {args.repeat}"
     )
     with quiet():  # process start-up (kernels, denoiser) out of the figures
-        interreflect.render_passes(bpy.context, objects, plate, 1)
+        interreflect.render_passes(scene, bpy.context.evaluated_depsgraph_get(), objects, plate, 1)
 
     runs = {(n, r): [] for n in TRIANGLES for r in PASSES}
     totals = {key: [] for key in runs}
@@ -260,7 +262,9 @@ def measure(addon, build_scenes, render_sample, args):
         charts(args.out, table, runs)
         with quiet():
             settings.triangles = TRIANGLES[0]
-            first, _, _ = interreflect.render_passes(bpy.context, objects, plate, 1)
+            first, _, _ = interreflect.render_passes(
+                scene, bpy.context.evaluated_depsgraph_get(), objects, plate, 1
+            )
         second, reports = composites[(TRIANGLES[0], 2)]
         encode = import_module(addon.__name__ + ".virtual_reflections.colour").linear_to_srgb
         path = os.path.join(args.out, "interreflection_passes.png")

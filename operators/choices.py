@@ -53,10 +53,7 @@ RESOLUTION_ITEMS = (
         "From the object's size on screen: about 3 map pixels (pi) per pixel it spans, rounded "
         "up to the next size below (256 to 4096)",
     ),
-) + tuple(
-    (str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels")
-    for w in WIDTHS
-)
+) + tuple((str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels") for w in WIDTHS)
 MAP_STORAGE_ITEMS = (
     ("PACK", "Pack into .blend", "Maps are packed into the .blend file when it is saved"),
     (

@@ -259,10 +259,8 @@ def _render_state(scene, layer, path, objects):
         (render, "use_persistent_data", False),  # 4.5 would keep the previous maps
         (layer, "use_pass_object_index", True),
     ]
-    settings = scene.virtual_reflections
-    if "sequence" in settings.bl_rna.properties:
-        # Update Every Frame rebuilds the maps from the plate when a render changes the frame.
-        changes.append((settings, "sequence", False))
+    # Update Every Frame rebuilds the maps from the plate when a render changes the frame.
+    changes.append((scene.virtual_reflections, "sequence", False))
     if hasattr(fmt, "media_type"):  # 5.x: multilayer is a media type; set before the format
         changes.append((fmt, "media_type", "MULTI_LAYER_IMAGE"))
     changes += [

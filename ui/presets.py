@@ -85,9 +85,7 @@ class VR_OT_apply_preset(bpy.types.Operator):
             self.report({"INFO"}, f"{label}: set for the next Generate")
             return {"FINISHED"}
         try:
-            report = generate.generate(
-                context.scene, context.evaluated_depsgraph_get(), attached
-            )
+            report = generate.generate(context.scene, context.evaluated_depsgraph_get(), attached)
         except ValueError as exc:
             self.report({"WARNING"}, f"{label} set; could not generate again: {exc}")
             return {"FINISHED"}

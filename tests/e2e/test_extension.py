@@ -32,9 +32,9 @@ def test_build_leaves_out_tests_docs_and_benchmarks(package):
     assert "virtual_reflections/projection.py" in names and "operators/generate.py" in names
     for name in names:
         assert not name.startswith(
-            ("tests/", "docs/", "tools/", "benchmarks/", "pipeline/", ".ci/", ".venv")
+            ("tests/", "docs/", "tools/", "benchmarks/", "pipeline/", "study/", ".ci/", ".venv")
         ), name
-        assert not name.endswith(("bench.py", "pyproject.toml")), name
+        assert not name.endswith(("pyproject.toml", ".zip")), name
 
 
 SCENE_SCRIPT = """
@@ -58,11 +58,11 @@ addons = bpy.context.preferences.addons
 name = next(a.module for a in addons if a.module.endswith(".virtual_reflections"))
 prefs = addons[name].preferences
 prefs.combine, prefs.map_folder = "MODULATE", "USER"
-module = importlib.import_module(name + ".preferences")
+maps = importlib.import_module(name + ".operators.maps")
 bpy.ops.wm.read_homefile(use_empty=True)
 print("PREFS=" + json.dumps({
     "combine": bpy.context.scene.virtual_reflections.combine,
-    "folder": module.maps_folder(create=False),
+    "folder": maps.maps_folder(create=False),
 }))
 """
 
