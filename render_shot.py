@@ -88,10 +88,18 @@ def parse(argv):
     p.add_argument("--triangles", type=int, default=None, help="0 = continuous")
     p.add_argument(
         "--method",
-        choices=("camera", "paper"),
+        choices=("ground", "camera", "paper"),
         default=None,
-        help="camera: the plate placed by the camera's field of view; paper: Ropinski et al. "
-        "(default: the shot's setting)",
+        help="ground: the camera view with the ground seen from the object; camera: the plate "
+        "placed by the camera's field of view; paper: Ropinski et al. (default: the shot's "
+        "setting)",
+    )
+    p.add_argument(
+        "--ground-object",
+        default=None,
+        metavar="NAME",
+        help="the object the reflective objects stand on, for --method ground (default: the "
+        "shot's setting, else a shadow catcher, else the lowest point of the objects)",
     )
     p.add_argument("--frame", type=int, default=None)
     p.add_argument("--engine", choices=("CYCLES", "EEVEE"), default=None)

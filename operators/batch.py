@@ -98,6 +98,14 @@ def _configure(scene, options: BatchOptions):
         settings.resolution = str(options.resolution)
     if options.method:
         settings.method = options.method.upper()
+    if options.ground_object:
+        ground = scene.objects.get(options.ground_object)
+        if ground is None:
+            raise ValueError(
+                f"--ground-object: no object named {options.ground_object!r} in scene "
+                f"{scene.name!r}"
+            )
+        settings.ground_object = ground
     if options.triangles is not None:
         settings.front = "CONTINUOUS" if options.triangles == 0 else "TRIANGLES"
         settings.triangles = max(4, options.triangles)

@@ -18,7 +18,7 @@ from ..virtual_reflections.frames import parse_frames
 from ..virtual_reflections.mapsize import WIDTHS
 
 COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
-METHODS = ("camera", "paper")
+METHODS = ("ground", "camera", "paper")
 ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
@@ -51,7 +51,8 @@ class BatchOptions:
     combine: str | None = None  # REPLACE, MODULATE, MIX or WORLD
     resolution: int | None = None  # lat-long map width
     triangles: int | None = None  # 0: continuous front face
-    method: str | None = None  # camera or paper
+    method: str | None = None  # ground, camera or paper
+    ground_object: str | None = None  # the ground for --method ground (None: the shot's)
     frame: int | None = None  # one frame of the scene
     engine: str | None = None  # CYCLES or EEVEE
     samples: int | None = None  # render samples (0: the shot's)

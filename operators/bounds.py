@@ -237,3 +237,25 @@ def _bounds(projection, points, vertex_count):
     x0, y0, x1, y1 = (min(max(v, -LIMIT), LIMIT) for v in (x0, y0, x1, y1))
     visible = x0 < width and x1 > 0 and y0 < height and y1 > 0
     return ScreenBounds(x0, y0, x1, y1, width, height, visible, vertex_count)
+
+
+def world_box(obj, depsgraph) -> tuple[np.ndarray, np.ndarray]:
+    """(min (3,), max (3,)) float64 world-space corners of ``obj``'s evaluated bounding box
+    (Blender's world: Z up)."""
+    obj_eval = obj.evaluated_get(depsgraph)
+    corners = np.array(obj_eval.bound_box, dtype=np.float64)  # (8, 3) local
+    matrix = np.array(obj_eval.matrix_world, dtype=np.float64)
+    world = corners @ matrix[:3, :3].T + matrix[:3, 3]
+    return world.min(0), world.max(0)
+
+
+def to_engine_frame(projection: CameraProjection, point=None, vector=None) -> tuple:
+    """A world point or direction in the engine's camera frame (docs/conventions.md: +Z the
+    view direction, +Y up, +X the plate's left): Blender's camera-local frame turned 180
+    degrees about Y."""
+    m = projection.world_to_camera
+    if point is not None:
+        local = m[:3, :3] @ np.asarray(point, np.float64) + m[:3, 3]
+    else:
+        local = m[:3, :3] @ np.asarray(vector, np.float64)
+    return (-float(local[0]), float(local[1]), -float(local[2]))

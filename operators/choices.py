@@ -25,6 +25,13 @@ COMBINE_ITEMS = (
 )
 METHOD_ITEMS = (
     (
+        "GROUND",
+        "Camera View + Ground",
+        "Camera View, and the ground the objects stand on seen from each object: what a "
+        "mirror shows below it comes from where the photo shows that ground (the ground: the "
+        "Ground object, else a shadow catcher, else the objects' lowest point)",
+    ),
+    (
         "CAMERA",
         "Camera View",
         "Place the plate exactly by the camera's field of view; where the photo saw nothing, "

@@ -74,7 +74,8 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
     if settings.combine == "WORLD" and boxes:
         # One shared, camera-aligned world map from the union of the objects' bounds.
         box = union_box(boxes.values())
-        env, _ = pipeline.build_map(pixels, box, view.params, max(widths.values()), report, "World")
+        shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
+        env, _ = pipeline.build_map(pixels, box, shared, max(widths.values()), report, "World")
         with report.timed("image"):
             world_map = maps.store_map(maps.WORLD_MAP, env, save_dir)
         with report.timed("wiring"):
@@ -92,7 +93,8 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         if obj.library is not None or obj.override_library is not None:
             report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
             continue
-        env, _ = pipeline.build_map(pixels, box, view.params, widths[obj], report, obj.name)
+        own = pipeline.map_params(view, scene, depsgraph, [obj])
+        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name)
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):

@@ -245,12 +245,13 @@ def _rebuild(scene, depsgraph, names, full, report):
             continue  # off screen: keep the map it had
         rounded = tuple(float(round(v)) for v in union_box(boxes.values()))
         full_width = map_width(settings.resolution, max(extents.values()))
-        base = (id(pixels), rounded, view.params)
+        own = pipeline.map_params(view, scene, depsgraph, list(boxes))
+        base = (id(pixels), rounded, own)
         built = _state.built.get(map_image.name)
         if built is not None and built[0] == base and (not full or built[1] == full_width):
             continue  # same rounded bounds: the map it has is right
         width = full_width if full else min(MOVING_WIDTH, full_width)
-        source, box, shaped = pixels, rounded, view.params
+        source, box, shaped = pixels, rounded, own
         if not full:
             source, level = _reduced(pixels, width)
             box = tuple(v / 2**level for v in rounded)

@@ -12,8 +12,11 @@ build from the previous composite (interreflect.py).
 """
 
 import contextlib
+import dataclasses
 import time
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
@@ -56,12 +59,16 @@ class Report:
         return f"{len(self.done)} reflection(s) in {total:.0f} ms ({stages})"
 
 
+MIN_HEIGHT = 1e-3  # scene units: an object's centre at least this far above the ground
+
+
 def params(settings, intrinsics=None) -> Params:
     """The engine's Params for a scene's settings. ``intrinsics`` (fx, fy, cx, cy) in plate
-    pixels select the camera-view method when it is chosen; without them (an orthographic
-    camera, the segmentation previews) it is the paper's."""
+    pixels select the camera-view method when Camera View or Camera View + Ground is chosen
+    (the ground is added per map: `map_params`); without them (an orthographic camera, the
+    segmentation previews) it is the paper's."""
     n = 0 if settings.front == "CONTINUOUS" else 4 * max(1, round(settings.triangles / 4))
-    camera = settings.method == "CAMERA" and intrinsics is not None
+    camera = settings.method in ("CAMERA", "GROUND") and intrinsics is not None
     return Params(
         enlarge=settings.enlarge / 100.0,
         border=settings.border / 100.0,
@@ -89,7 +96,7 @@ class View:
         """Advice about the set-up: no camera view method for an orthographic camera, a plate
         whose aspect differs from the render's."""
         out = []
-        if settings.method == "CAMERA" and self.params.intrinsics is None:
+        if settings.method in ("CAMERA", "GROUND") and self.params.intrinsics is None:
             out.append(
                 "orthographic camera: the camera-view method needs a perspective camera; "
                 "used the paper's method"
@@ -120,6 +127,49 @@ def view(scene, plate_shape, depsgraph=None) -> View:
         params(scene.virtual_reflections, projection.intrinsics(sx, sy)),
         shape,
     )
+
+
+def ground_height(scene, depsgraph, objects) -> float:
+    """The world height (Z) of the ground the objects stand on: the top of the scene's ground
+    object (``settings.ground_object``) when one is chosen, else of a shadow catcher in the
+    scene, else the lowest point of ``objects``."""
+    chosen = scene.virtual_reflections.ground_object
+    if chosen is None:
+        chosen = next(
+            (
+                o
+                for o in scene.objects
+                if getattr(o, "is_shadow_catcher", False) and o.type == "MESH"
+            ),
+            None,
+        )
+    if chosen is not None:
+        return float(bounds.world_box(chosen, depsgraph)[1][2])
+    return min(float(bounds.world_box(o, depsgraph)[0][2]) for o in objects)
+
+
+def map_params(view, scene, depsgraph, objects) -> Params:
+    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
+    ground plane seen from the centre of their bounding box (engine ground.py). Falls back to
+    the view's (the distant camera view) when the centre is not above the ground."""
+    settings = scene.virtual_reflections
+    if settings.method != "GROUND" or view.params.method != "camera" or not objects:
+        return view.params
+    boxes = [bounds.world_box(o, depsgraph) for o in objects]
+    low = np.min([b[0] for b in boxes], axis=0)
+    high = np.max([b[1] for b in boxes], axis=0)
+    centre = 0.5 * (low + high)
+    height = float(centre[2]) - ground_height(scene, depsgraph, objects)
+    if height < MIN_HEIGHT:
+        return view.params
+    origin = bounds.to_engine_frame(view.projection, point=centre)
+    up = bounds.to_engine_frame(view.projection, vector=(0.0, 0.0, 1.0))
+    # Rounded (1/1000 of the camera's distance, 1e-4 of a unit vector) so that a pose seen
+    # before finds its cached table and sub-millimetre jitter does not rebuild the map.
+    step = 1e-3 * max(float(np.linalg.norm(origin)), 1e-3)
+    ground = tuple(round(v / step) * step for v in (*origin, height))
+    up = tuple(round(v, 4) for v in up)
+    return dataclasses.replace(view.params, method="ground", ground=ground, up=up)
 
 
 def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=None):

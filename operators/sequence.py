@@ -181,11 +181,12 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
             held = filters.setdefault(key, BoundsFilter())(frame, raw, settings.smoothing, step)
             result.raw[image.name], result.boxes[image.name] = raw, held
         width = _width(settings, image)
-        built_from = (current.identity, held, view.params, width, image.name_full)
+        shaped = pipeline.map_params(view, scene, depsgraph, objs)
+        built_from = (current.identity, held, shaped, width, image.name_full)
         if _written.get(image.name) == built_from and tuple(image.size) == (width, width // 2):
             result.unchanged.append(image.name)
             continue
-        env, _ = pipeline.build_map(current.pixels, held, view.params, width, result)
+        env, _ = pipeline.build_map(current.pixels, held, shaped, width, result)
         with result.timed("image"):
             _write_map(image, env)
         _written[image.name] = built_from

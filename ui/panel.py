@@ -131,6 +131,8 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         settings = context.scene.virtual_reflections
         col = layout.column()
         col.prop(settings, "method")
+        if settings.method == "GROUND":
+            col.prop(settings, "ground_object")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

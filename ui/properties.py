@@ -60,6 +60,13 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
     method: EnumProperty(
         update=_shaping_changed, name="Method", items=METHOD_ITEMS, default="CAMERA"
     )
+    ground_object: PointerProperty(
+        update=_shaping_changed,
+        name="Ground",
+        type=bpy.types.Object,
+        description="The object the reflective objects stand on (Camera View + Ground); empty: "
+        "a shadow catcher in the scene, else the lowest point of the objects",
+    )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed
     )

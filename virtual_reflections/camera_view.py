@@ -124,7 +124,7 @@ def fade_weight(angle: np.ndarray, fade_deg: float) -> np.ndarray:
 # --- seen texels: a supersampled box filter ------------------------------------------------
 
 
-def _directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float):
+def directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float):
     """Directions (n, 3) through the texels `ids` (flat indices) shifted by (dx, dy) texels."""
     if layout == "latlong":
         row, col = np.divmod(ids, size)
@@ -154,7 +154,7 @@ def seen_footprints(layout, size, directions, width, height, intrinsics):
     ok = np.ones(ids.size, bool)
     for dx in (-0.5, 0.5):
         for dy in (-0.5, 0.5):
-            c = _directions_at(layout, size, ids, dx, dy)
+            c = directions_at(layout, size, ids, dx, dy)
             ok &= c[:, 2] > 1e-9
             cz = np.where(c[:, 2] > 1e-9, c[:, 2], 1.0)
             corners[dx, dy] = (cx - fx * c[:, 0] / cz, cy - fy * c[:, 1] / cz)
@@ -195,11 +195,15 @@ def supersample_levels(rect, shapes, n: int = SUPERSAMPLE) -> np.ndarray:
     return np.clip(level, 0, len(shapes) - 1).astype(np.int32)
 
 
-def supersample_taps(layout, size, ids, intrinsics, level, shapes, offsets, n: int = SUPERSAMPLE):
+def supersample_taps(
+    layout, size, ids, intrinsics, level, shapes, offsets, n: int = SUPERSAMPLE, project=None
+):
     """Taps (S, 4 n^2) int32 and weights (S, 4 n^2) float32 for the texels `ids`: the mean of
     n x n bilinear samples of the plate at the projections of n x n directions spread evenly
     over each texel (its footprint, sampled as a renderer supersamples a pixel), read on mip
-    `level` (S,) (`supersample_levels`) of the flat bordered pyramid with level `offsets`."""
+    `level` (S,) (`supersample_levels`) of the flat bordered pyramid with level `offsets`.
+    `project` maps (k, 3) directions to plate positions (px, py) (default: where the camera
+    sees the direction, the distant model; ground.py passes where it sees the ground point)."""
     fx, fy, cx, cy = intrinsics
     scale = (2.0 ** -level.astype(np.float64))[:, None]
     widths = np.array([s[1] for s in shapes], np.int64)[level][:, None]
@@ -209,10 +213,13 @@ def supersample_taps(layout, size, ids, intrinsics, level, shapes, offsets, n: i
     k = 0
     for sy in range(n):
         for sx in range(n):
-            d = _directions_at(layout, size, ids, (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5)
-            z = np.where(d[:, 2] > 1e-9, d[:, 2], 1e-9)
-            px = np.clip(cx - fx * d[:, 0] / z, 0, None)
-            py = np.clip(cy - fy * d[:, 1] / z, 0, None)
+            d = directions_at(layout, size, ids, (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5)
+            if project is None:
+                z = np.where(d[:, 2] > 1e-9, d[:, 2], 1e-9)
+                px = np.clip(cx - fx * d[:, 0] / z, 0, None)
+                py = np.clip(cy - fy * d[:, 1] / z, 0, None)
+            else:
+                px, py = project(d)
             u, v = px * scale[:, 0] - 0.5, py * scale[:, 0] - 0.5
             i0, j0 = np.floor(u), np.floor(v)
             au, av = u - i0, v - j0
@@ -244,8 +251,28 @@ def fill_level(shapes) -> int:
     return len(shapes) - 1
 
 
+def elevation_deg(directions, up=None) -> np.ndarray:
+    """Elevation in degrees of (..., 3) directions above the horizon whose normal is ``up``
+    (camera frame), or above the camera's own horizontal plane (up = +Y) without one."""
+    d = np.asarray(directions, np.float64)
+    norm = np.sqrt((d * d).sum(-1))
+    norm = np.where(norm > 0, norm, 1.0)
+    if up is None:
+        height = d[..., 1]
+    else:
+        u = np.asarray(up, np.float64)
+        height = d @ (u / np.linalg.norm(u))
+    return np.degrees(np.arcsin(np.clip(height / norm, -1.0, 1.0)))
+
+
 def fill_geometry(
-    shape, level: int, intrinsics, width_deg: float, spread: float = 0.0, sides: int = 1
+    shape,
+    level: int,
+    intrinsics,
+    width_deg: float,
+    spread: float = 0.0,
+    sides: int = 1,
+    up=None,
 ):
     """What the fill needs of a plate's geometry at mip `level` of shape (h, w).
 
@@ -256,14 +283,15 @@ def fill_geometry(
     cumulative pixel counts per elevation bin). The window is the bins within `width_deg` of
     the bin's elevation, its centre held `width_deg` inside the plate's own range of elevations
     (so above the plate: the top band; below: the bottom band), widening by `spread` degrees
-    per degree beyond.
+    per degree beyond. Elevations are above the horizon whose normal is `up` (camera frame;
+    None: the camera's own, +Y).
     """
     fx, fy, cx, cy = intrinsics
     h, w = shape
     s = 2.0**level
     py, px = np.mgrid[0:h, 0:w].astype(np.float64)
     dx, dy = -((px + 0.5) * s - cx) / fx, -((py + 0.5) * s - cy) / fy
-    elevation = np.degrees(np.arctan2(dy, np.sqrt(dx * dx + 1.0))).ravel()
+    elevation = elevation_deg(np.stack((dx, dy, np.ones_like(dx)), -1), up).ravel()
     ebin = np.clip(np.rint(elevation + 90.0), 0, FILL_BINS - 1).astype(np.int64)
     if sides == 2:
         side = ((px + 0.5) * s >= cx).ravel().astype(np.int64)  # 0: left (+X), 1: right
@@ -376,14 +404,13 @@ def side_weight(directions, intrinsics, width: int) -> np.ndarray:
     return (0.5 + 0.5 * s).astype(np.float32)
 
 
-def fill_taps(directions, base: int, side=None):
+def fill_taps(directions, base: int, side=None, up=None):
     """The taps (T, 2) int32 and their weights (T, 2) float32 that interpolate the fill
     profile (rows `base` .. `base` + FILL_BINS - 1 of the source) at each direction's elevation.
     With `side` ((T,) weight of the left half, `side_weight`): (T, 4) taps, the left profile's
-    two and the right profile's (rows `base` + FILL_BINS ..), weighted by side and 1 - side."""
-    d = np.asarray(directions, np.float32)
-    norm = np.sqrt((d * d).sum(-1))
-    elevation = np.degrees(np.arcsin(np.clip(d[:, 1] / np.where(norm > 0, norm, 1), -1, 1)))
+    two and the right profile's (rows `base` + FILL_BINS ..), weighted by side and 1 - side.
+    Elevations are above the horizon whose normal is `up` (None: the camera's own)."""
+    elevation = elevation_deg(directions, up).astype(np.float32)
     b = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
     b0 = np.minimum(np.floor(b), FILL_BINS - 2)
     frac = (b - b0).astype(np.float32)

@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 MAX_TRIANGLES = 1024
-METHODS = ("paper", "camera")
+METHODS = ("paper", "camera", "ground")
 METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
 
 
@@ -24,7 +24,8 @@ class Params:
                continuous limit n -> infinity.
     hfov:      horizontal field of view of the plate's camera in degrees, or None. The
                paper's method ignores it; the camera-view method needs it (or `intrinsics`).
-    method:    "paper" (Ropinski et al. 2004, §3.1–3.2) or "camera" (camera_view.py, the
+    method:    "paper" (Ropinski et al. 2004, §3.1–3.2), "ground" (camera view with the ground
+               plane seen from the object: ground.py) or "camera" (camera_view.py, the
                add-on's Camera View: the plate placed exactly by the camera's field of view,
                blurred edge extension and fill outside). "frustum", its earlier name, is
                accepted and stored as "camera".
@@ -49,7 +50,12 @@ class Params:
                but darker than the light the plate holds), 1 the arithmetic mean's luminance
                (the plate's energy), between their geometric blend (0.5, the default).
     intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
-               aspect), for the camera-view method; overrides hfov.
+               aspect), for the camera-view and ground methods; overrides hfov.
+    ground:    (ox, oy, oz, height) for the ground method: the object's centre in the camera
+               frame (scene units) and its height above the ground plane (> 0).
+    up:        the world's up direction in the camera frame (the ground plane's normal), for
+               the ground method: the fill of unseen directions is then by elevation above the
+               world's horizon rather than by the camera's own elevation.
     """
 
     enlarge: float = 0.075
@@ -66,6 +72,8 @@ class Params:
     fill_spread: float = 0.5
     fill_sides: bool = True
     fill_energy: float = 0.5
+    ground: tuple | None = None
+    up: tuple | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -110,7 +118,23 @@ class Params:
             or self.intrinsics[1] <= 0
         ):
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
-        if self.method == "camera" and self.hfov is None and self.intrinsics is None:
+        for name in ("ground", "up"):
+            value = getattr(self, name)
+            if value is not None:
+                value = tuple(float(v) for v in value)
+                object.__setattr__(self, name, value)
+                if not all(math.isfinite(v) for v in value):
+                    raise ValueError(f"{name} must be finite, got {value}")
+        if self.up is not None and (len(self.up) != 3 or math.hypot(*self.up) < 1e-9):
+            raise ValueError(f"up must be a non-zero camera-frame vector, got {self.up}")
+        if self.ground is not None and (len(self.ground) != 4 or self.ground[3] <= 0):
+            raise ValueError(
+                "ground must be (ox, oy, oz, height): the object in the camera frame and its "
+                f"height above the ground (> 0), got {self.ground}"
+            )
+        if self.method == "ground" and (self.ground is None or self.up is None):
+            raise ValueError("the ground method needs the object's position (ground) and up")
+        if self.method in ("camera", "ground") and self.hfov is None and self.intrinsics is None:
             raise ValueError(
                 "the camera method needs the plate camera's field of view (hfov or intrinsics)"
             )

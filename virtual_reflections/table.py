@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import camera_view
+from . import camera_view, ground
 from .layouts import map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import for_blocks
@@ -219,6 +219,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             params.fill_width,
             params.fill_spread,
             sides,
+            params.up,
         )
         base = int(level_offsets(shapes[:levels], first)[-1])
         fill = Fill(
@@ -251,7 +252,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
     if filled:
         fill_index, fill_weight = camera_view.fill_taps(
-            directions[near], fill.base, None if side is None else side[near]
+            directions[near], fill.base, None if side is None else side[near], params.up
         )
         near_index[:, 8:] = fill_index
         near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
@@ -266,7 +267,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             (
                 far,
                 *camera_view.fill_taps(
-                    directions[far], fill.base, None if side is None else side[far]
+                    directions[far], fill.base, None if side is None else side[far], params.up
                 ),
             )
         )
@@ -297,6 +298,8 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         params = Params(triangles=int(params))
     if params.method == "camera":
         return _build_camera_view(seg, layout, size, params)
+    if params.method == "ground":
+        return _build_ground(seg, layout, size, params)
     shape = map_shape(layout, size)
     directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     count = directions.shape[0]
@@ -337,6 +340,75 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     )
 
 
+def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
+    """The ground method's table (ground.py): the camera view's table for this camera and
+    horizon (cached, shared by every object position), with the texels whose ground point the
+    plate shows taken out of its groups and given their ground taps (faded into the fill near
+    the plate's borders)."""
+    width, height = seg.width, seg.height
+    distant = dataclasses.replace(params, method="camera", ground=None)
+    base = _camera_table(width, height, distant, layout, size)
+    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
+    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+    shapes = level_shapes(height, width)
+    offsets = level_offsets(shapes, base.first_level)
+    ids, share, index, weight = ground.ground_taps(
+        layout,
+        size,
+        directions,
+        params.ground,
+        params.up,
+        intrinsics,
+        width,
+        height,
+        shapes,
+        offsets,
+        base.first_level,
+        base.levels - 1,
+    )
+    taken = np.zeros(directions.shape[0], bool)
+    taken[ids] = True
+
+    def without(texels, idx, wts):
+        keep = ~taken[texels]
+        return texels[keep], idx[keep], wts[keep]
+
+    near = without(base.texels, base.index, base.weight)
+    groups = [without(*g) for g in base.groups]
+    full = share >= 1.0
+    groups.append((ids[full], index[full], weight[full]))
+    part = np.flatnonzero(~full)
+    if part.size:
+        w = share[part, None]
+        if base.fill is not None:
+            side = None
+            if base.fill.sides == 2:
+                side = camera_view.side_weight(directions[ids[part]], intrinsics, width)
+            fill_index, fill_weight = camera_view.fill_taps(
+                directions[ids[part]], base.fill.base, side, params.up
+            )
+            groups.append(
+                (
+                    ids[part],
+                    np.concatenate((index[part], fill_index), axis=1),
+                    np.concatenate((weight[part] * w, fill_weight * (1.0 - w)), axis=1),
+                )
+            )
+        else:
+            groups.append((ids[part], index[part], weight[part]))
+    for g in groups:
+        _frozen(*g)
+    _frozen(*near)
+    return dataclasses.replace(
+        base,
+        segmentation=seg,
+        texels=near[0],
+        index=near[1],
+        weight=near[2],
+        groups=tuple(g for g in groups if g[0].size),
+    )
+
+
 @functools.lru_cache(maxsize=8)  # ~60 MB per 1024 x 512 table
 def lookup_table(
     width: int, height: int, bbox: tuple, params: Params, layout: str = "latlong", size: int = 1024
@@ -345,7 +417,8 @@ def lookup_table(
 
     The camera-view method's table depends on the camera, not on where the object is: one is
     built per plate size, camera and layout and shared by every object and pose (each gets
-    its own segmentation, which only the paper's method and the add-on's advice read)."""
+    its own segmentation, which only the paper's method and the add-on's advice read). The
+    ground method's adds, per object position, the texels that see the ground."""
     seg = segment(width, height, bbox, params)
     if params.method == "camera":
         return dataclasses.replace(

@@ -1,0 +1,137 @@
+"""The ground method: the camera view, with the ground the object stands on seen from the
+object (parallax).
+
+The distant model (camera_view.py) treats everything as infinitely far: a direction from the
+object reads the plate where the *camera* sees that direction. Half of what a mirror object
+on the ground shows is the ground around it, a few metres away, which the plate does see, but
+at another place. With the ground plane known (the add-on knows the camera and the scene), a
+direction d from the object's centre O (camera frame, docs/conventions.md) that points down
+meets the ground at
+
+    P = O + t d,  t = -height / (up . d)   (up . d < 0; height: O above the ground plane)
+
+and the plate shows P at the camera's projection of P (pinhole intrinsics fx, fy, cx, cy):
+
+    px = cx - fx P.x / P.z,  py = cy - fy P.y / P.z   (P.z > 0).
+
+Those texels are filtered over their footprint as the seen texels of the camera view are: the
+mean of n x n bilinear samples (n = SAMPLES) at the ground points of n x n directions spread
+over the texel, on the mip level where the samples are 2-4 pixels apart.
+Where the ground point leaves the plate (behind the camera, beyond a border) the ground fades,
+over `MARGIN` of the plate's height past the border, into the fill (by elevation above the
+world's horizon, `Params.up`), so there is no seam; texels whose ground point is behind the
+camera, or that point up, are the camera view's as before.
+
+What it does not model: the object's own shadow and contact (the plate has no object), things
+standing on the ground (they are read where the camera sees them, as part of the ground), and
+the ground hidden from the camera by something in front of it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera_view import directions_at, supersample_levels, supersample_taps
+
+MARGIN = 0.25  # plate heights past the border over which the ground fades into the fill
+SAMPLES = 2  # n: n x n bilinear samples over a ground texel's footprint (16 taps)
+
+
+def _unit(v):
+    v = np.asarray(v, np.float64)
+    return v / np.linalg.norm(v)
+
+
+def ground_points(directions, ground, up):
+    """Where rays from the object along (..., 3) camera-frame ``directions`` meet the ground:
+    ((..., 3) float64 points in the camera frame, (...,) bool: the ray goes down and meets it
+    in front of the camera)."""
+    d = np.asarray(directions, np.float64)
+    o = np.asarray(ground[:3], np.float64)
+    height = float(ground[3])
+    u = _unit(up)
+    down = d @ u
+    hits = down < -1e-9
+    t = np.where(hits, -height / np.where(hits, down, -1.0), 0.0)
+    points = o + t[..., None] * d
+    return points, hits & (points[..., 2] > 1e-6)
+
+
+def ground_pixels(directions, ground, up, intrinsics):
+    """((...,) px, (...,) py, (...,) bool valid): the plate positions of the ground points of
+    ``directions`` (continuous plate pixels; meaningless where not valid)."""
+    fx, fy, cx, cy = intrinsics
+    points, valid = ground_points(directions, ground, up)
+    z = np.where(valid, points[..., 2], 1.0)
+    return cx - fx * points[..., 0] / z, cy - fy * points[..., 1] / z, valid
+
+
+def ground_weight(px, py, valid, width, height, margin=MARGIN):
+    """(...,) float32 weight of the ground: 1 where its point is on the plate, falling with a
+    smoothstep to 0 at ``margin`` plate heights past the nearest border; 0 where not valid."""
+    outside = np.maximum.reduce([np.zeros_like(px), -px, px - width, -py, py - height]) / max(
+        margin * height, 1e-9
+    )
+    t = np.clip(outside, 0.0, 1.0)
+    w = 1.0 - t * t * (3.0 - 2.0 * t)
+    return np.where(valid, w, 0.0).astype(np.float32)
+
+
+def _footprints(layout, size, ids, ground, up, intrinsics, width, height, centre):
+    """(4, S) x0, x1, y0, y1: the rectangle between the ground points of each texel's corners
+    on the plate (a corner whose ray misses the ground counts as the centre), never smaller than
+    a pixel about the centre, clipped to the plate."""
+    px, py = centre
+    xs, ys = [], []
+    for dx in (-0.5, 0.5):
+        for dy in (-0.5, 0.5):
+            cx_, cy_, ok = ground_pixels(
+                directions_at(layout, size, ids, dx, dy), ground, up, intrinsics
+            )
+            xs.append(np.where(ok, cx_, px))
+            ys.append(np.where(ok, cy_, py))
+    x0, x1 = np.minimum(np.min(xs, 0), px - 0.5), np.maximum(np.max(xs, 0), px + 0.5)
+    y0, y1 = np.minimum(np.min(ys, 0), py - 0.5), np.maximum(np.max(ys, 0), py + 0.5)
+    return np.stack(
+        (
+            np.clip(x0, 0, width),
+            np.clip(x1, 0, width),
+            np.clip(y0, 0, height),
+            np.clip(y1, 0, height),
+        )
+    )
+
+
+def ground_taps(
+    layout, size, directions, ground, up, intrinsics, width, height, shapes, offsets, first, last
+):
+    """The ground's part of a table: (ids (G,) int64 texels whose ground point the plate shows or
+    nearly, weight (G,) float32 of the ground in them (`ground_weight`), index (G, 4 n^2) int32
+    and taps' weights (G, 4 n^2) float32 summing to 1: n x n bilinear samples over the texel's
+    footprint on the ground, on mip levels ``first`` .. ``last``)."""
+    px, py, valid = ground_pixels(directions, ground, up, intrinsics)
+    weight = ground_weight(px, py, valid, width, height)
+    ids = np.flatnonzero(weight > 0)
+    if not ids.size:
+        return (
+            ids,
+            weight[ids],
+            np.empty((0, 4 * SAMPLES**2), np.int32),
+            np.empty((0, 4 * SAMPLES**2), np.float32),
+        )
+    centre = (np.clip(px[ids], 0, width), np.clip(py[ids], 0, height))
+    rect = _footprints(layout, size, ids, ground, up, intrinsics, width, height, centre)
+    level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
+
+    def project(d):
+        x, y, ok = ground_pixels(d, ground, up, intrinsics)
+        # A sample whose ray misses the ground (the texel straddles the horizon) reads the
+        # texel centre's ground point; all samples are held on the plate.
+        x = np.where(ok, x, centre[0])
+        y = np.where(ok, y, centre[1])
+        return np.clip(x, 0, width), np.clip(y, 0, height)
+
+    index, taps = supersample_taps(
+        layout, size, ids, intrinsics, level, shapes, offsets, SAMPLES, project=project
+    )
+    return ids, weight[ids], index, taps
