@@ -114,7 +114,7 @@ def test_frozen(batch_options):
         ({"passes": "some"}, "expected a number of passes >= 1 or auto"),
         ({"smoothing": 0.99}, "expected a number from 0 to 0.95, not 0.99"),
         ({"combine": "ADD"}, "--combine must be REPLACE, MODULATE, MIX or WORLD, not 'ADD'"),
-        ({"method": "CAMERA"}, "--method must be camera or paper"),
+        ({"method": "CAMERA"}, "--method must be ground, camera or paper"),
         ({"engine": "WORKBENCH"}, "--engine must be CYCLES or EEVEE"),
         ({"resolution": 300}, "--resolution must be 256, 512, 1024, 2048 or 4096, not 300"),
         ({"samples": -1}, "--samples must be a number >= 0"),
