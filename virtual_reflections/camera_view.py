@@ -205,12 +205,7 @@ def supersample_taps(
     `project` maps (k, 3) directions to plate positions (px, py) (default: where the camera
     sees the direction, the distant model; ground.py passes where it sees the ground point)."""
     fx, fy, cx, cy = intrinsics
-    scale = (2.0 ** -level.astype(np.float64))[:, None]
-    widths = np.array([s[1] for s in shapes], np.int64)[level][:, None]
-    heights = np.array([s[0] for s in shapes], np.int64)[level][:, None]
-    index = np.empty((ids.size, n * n, 4), np.int64)
-    weight = np.empty((ids.size, n * n, 4), np.float64)
-    k = 0
+    positions = []
     for sy in range(n):
         for sx in range(n):
             d = directions_at(layout, size, ids, (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5)
@@ -220,24 +215,38 @@ def supersample_taps(
                 py = np.clip(cy - fy * d[:, 1] / z, 0, None)
             else:
                 px, py = project(d)
-            u, v = px * scale[:, 0] - 0.5, py * scale[:, 0] - 0.5
-            i0, j0 = np.floor(u), np.floor(v)
-            au, av = u - i0, v - j0
-            cols = np.clip(i0.astype(np.int64)[:, None] + [0, 1], -1, widths)
-            rows = np.clip(j0.astype(np.int64)[:, None] + [0, 1], -1, heights)
-            w2 = (widths + 2)[:, 0]
-            base = (
-                offsets[level][:, None, None]
-                + (rows + 1)[:, :, None] * w2[:, None, None]
-                + (cols + 1)[:, None, :]
-            )
-            index[:, k] = base.reshape(-1, 4)
-            wy = np.stack((1 - av, av), -1)
-            wx = np.stack((1 - au, au), -1)
-            weight[:, k] = (wy[:, :, None] * wx[:, None, :]).reshape(-1, 4) / (n * n)
-            k += 1
-    m = ids.size
-    return index.reshape(m, -1).astype(np.int32), weight.reshape(m, -1).astype(np.float32)
+            positions.append((px, py))
+    return mean_taps(positions, level, shapes, offsets)
+
+
+def mean_taps(positions, level, shapes, offsets):
+    """Taps (S, 4 k) int32 and weights (S, 4 k) float32: the mean of k bilinear samples at
+    ``positions`` (k pairs of (S,) continuous plate coordinates px, py, at level 0's scale),
+    read on mip ``level`` (S,) of the flat bordered pyramid with level ``offsets``."""
+    level = np.asarray(level, np.int64)
+    scale = 2.0 ** -level.astype(np.float64)
+    widths = np.array([s[1] for s in shapes], np.int32)[level]
+    heights = np.array([s[0] for s in shapes], np.int32)[level]
+    stride = widths + 2  # a bordered level's row length
+    base = np.asarray(offsets, np.int64)[level].astype(np.int32)
+    count = level.size
+    index = np.empty((count, len(positions), 4), np.int32)
+    weight = np.empty((count, len(positions), 4), np.float32)
+    share = np.float32(1.0 / len(positions))
+    for k, (px, py) in enumerate(positions):
+        u, v = px * scale - 0.5, py * scale - 0.5
+        i0, j0 = np.floor(u), np.floor(v)
+        au, av = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
+        i0, j0 = i0.astype(np.int32), j0.astype(np.int32)
+        c0, c1 = np.clip(i0, -1, widths) + 1, np.clip(i0 + 1, -1, widths) + 1
+        r0 = base + (np.clip(j0, -1, heights) + 1) * stride
+        r1 = base + (np.clip(j0 + 1, -1, heights) + 1) * stride
+        index[:, k, 0], index[:, k, 1] = r0 + c0, r0 + c1
+        index[:, k, 2], index[:, k, 3] = r1 + c0, r1 + c1
+        bu, bv = 1.0 - au, 1.0 - av
+        weight[:, k, 0], weight[:, k, 1] = bv * bu * share, bv * au * share
+        weight[:, k, 2], weight[:, k, 3] = av * bu * share, av * au * share
+    return index.reshape(count, -1), weight.reshape(count, -1)
 
 
 # --- the fill: a robust average of the plate by elevation ---------------------------------------

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera_view import directions_at, supersample_levels, supersample_taps
+from .camera_view import directions_at, mean_taps, supersample_levels
 
 MARGIN = 0.25  # plate heights past the border over which the ground fades into the fill
 SAMPLES = 2  # n: n x n bilinear samples over a ground texel's footprint (16 taps)
@@ -77,31 +77,6 @@ def ground_weight(px, py, valid, width, height, margin=MARGIN):
     return np.where(valid, w, 0.0).astype(np.float32)
 
 
-def _footprints(layout, size, ids, ground, up, intrinsics, width, height, centre):
-    """(4, S) x0, x1, y0, y1: the rectangle between the ground points of each texel's corners
-    on the plate (a corner whose ray misses the ground counts as the centre), never smaller than
-    a pixel about the centre, clipped to the plate."""
-    px, py = centre
-    xs, ys = [], []
-    for dx in (-0.5, 0.5):
-        for dy in (-0.5, 0.5):
-            cx_, cy_, ok = ground_pixels(
-                directions_at(layout, size, ids, dx, dy), ground, up, intrinsics
-            )
-            xs.append(np.where(ok, cx_, px))
-            ys.append(np.where(ok, cy_, py))
-    x0, x1 = np.minimum(np.min(xs, 0), px - 0.5), np.maximum(np.max(xs, 0), px + 0.5)
-    y0, y1 = np.minimum(np.min(ys, 0), py - 0.5), np.maximum(np.max(ys, 0), py + 0.5)
-    return np.stack(
-        (
-            np.clip(x0, 0, width),
-            np.clip(x1, 0, width),
-            np.clip(y0, 0, height),
-            np.clip(y1, 0, height),
-        )
-    )
-
-
 def ground_taps(
     layout, size, directions, ground, up, intrinsics, width, height, shapes, offsets, first, last
 ):
@@ -112,26 +87,32 @@ def ground_taps(
     px, py, valid = ground_pixels(directions, ground, up, intrinsics)
     weight = ground_weight(px, py, valid, width, height)
     ids = np.flatnonzero(weight > 0)
+    taps = 4 * SAMPLES**2
     if not ids.size:
-        return (
-            ids,
-            weight[ids],
-            np.empty((0, 4 * SAMPLES**2), np.int32),
-            np.empty((0, 4 * SAMPLES**2), np.float32),
-        )
+        return ids, weight[ids], np.empty((0, taps), np.int32), np.empty((0, taps), np.float32)
     centre = (np.clip(px[ids], 0, width), np.clip(py[ids], 0, height))
-    rect = _footprints(layout, size, ids, ground, up, intrinsics, width, height, centre)
+    # The ground points of n x n directions spread over each texel; a sample whose ray misses
+    # the ground (the texel straddles the horizon) reads the centre's; all held on the plate.
+    positions = []
+    for sy in range(SAMPLES):
+        for sx in range(SAMPLES):
+            d = directions_at(
+                layout, size, ids, (sx + 0.5) / SAMPLES - 0.5, (sy + 0.5) / SAMPLES - 0.5
+            )
+            x, y, ok = ground_pixels(d, ground, up, intrinsics)
+            positions.append(
+                (
+                    np.clip(np.where(ok, x, centre[0]), 0, width),
+                    np.clip(np.where(ok, y, centre[1]), 0, height),
+                )
+            )
+    # The footprint: the samples' spread, scaled from their span (1 - 1/n of the texel) to the
+    # whole texel, never under a pixel.
+    xs = np.stack([p[0] for p in positions])
+    ys = np.stack([p[1] for p in positions])
+    grow = SAMPLES / max(SAMPLES - 1, 1)
+    span = np.maximum(np.ptp(xs, 0), np.ptp(ys, 0)) * grow
+    rect = np.stack((np.zeros_like(span), np.maximum(span, 1.0), np.zeros_like(span), span))
     level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
-
-    def project(d):
-        x, y, ok = ground_pixels(d, ground, up, intrinsics)
-        # A sample whose ray misses the ground (the texel straddles the horizon) reads the
-        # texel centre's ground point; all samples are held on the plate.
-        x = np.where(ok, x, centre[0])
-        y = np.where(ok, y, centre[1])
-        return np.clip(x, 0, width), np.clip(y, 0, height)
-
-    index, taps = supersample_taps(
-        layout, size, ids, intrinsics, level, shapes, offsets, SAMPLES, project=project
-    )
-    return ids, weight[ids], index, taps
+    index, taps_weight = mean_taps(positions, level, shapes, offsets)
+    return ids, weight[ids], index, taps_weight
