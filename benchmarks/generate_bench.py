@@ -1,11 +1,14 @@
 """Benchmark: Generate Virtual Reflection end to end in Blender (bpy module).
 
-One object of ~100k vertices, a 1920x1080 plate, a 1024x512 map. Prints medians per stage
-for the first generation of a pose (bounds changed: the table is built) and for a
-regeneration with unchanged bounds (the cached table: only the gather), and the end-to-end
-time of the operator call.
+One object of ~100k vertices standing on the ground 8 m in front of a camera at 1.6 m, a
+1920x1080 plate, a 1024x512 map. Per method (each --method given, in the same run) prints
+medians per stage for the first generation of a pose (the object moved: its table is built;
+Camera View shares one table per camera, Camera View + Ground adds the ground per position)
+and for a regeneration of an unchanged pose (the cached table: only the gather), the
+end-to-end time of the operator call, and each method's moved-pose time against the first
+method's.
 
-    .venv/bin/python benchmarks/generate_bench.py [--repeat N]
+    .venv/bin/python benchmarks/generate_bench.py [--repeat N] [--method camera ground ...]
 """
 
 import argparse
@@ -39,10 +42,12 @@ def scene_with_object():
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
-    cam.location = (0.0, -8.0, 0.5)
-    cam.rotation_euler = (math.radians(88), 0.0, 0.0)
+    cam.location = (0.0, -8.0, 1.6)
+    cam.rotation_euler = (math.radians(80), 0.0, 0.0)
     scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
-    bpy.ops.mesh.primitive_uv_sphere_add(segments=400, ring_count=250, radius=1.5)
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        segments=400, ring_count=250, radius=1.5, location=(0.0, 0.0, 1.5)
+    )
     obj = bpy.context.active_object
     plate = bpy.data.images.new("Plate", 1920, 1080, alpha=False, float_buffer=False)
     rng = np.random.default_rng(1)
@@ -55,23 +60,14 @@ def scene_with_object():
     return scene, obj
 
 
-def main():
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--repeat", type=int, default=9)
-    args = parser.parse_args()
-    addon = load_addon()
-    generate = sys.modules[addon.__name__ + ".operators.generate"]
-    scene, obj = scene_with_object()
-    print(
-        f"Blender {bpy.app.version_string}; object {len(obj.data.vertices)} vertices; "
-        f"plate 1920x1080 8-bit; map 1024x512"
-    )
+def measure(generate, obj, repeat, method):
+    """Print the stage medians of ``method``; returns the moved pose's median seconds."""
     rows = {"moved": [], "same": []}
     ends = {"moved": [], "same": []}
-    for i in range(args.repeat):
+    for i in range(repeat):
         for case in ("moved", "same"):
             if case == "moved":
-                obj.location.x = 0.01 * (i + 1)  # new bounds: the table is rebuilt
+                obj.location.x = 0.01 * (i + 1) + (0.5 if method == "ground" else 0.0)
                 bpy.context.view_layer.update()
             t = time.perf_counter()
             report = generate.generate(
@@ -79,6 +75,7 @@ def main():
             )
             ends[case].append(time.perf_counter() - t)
             rows[case].append(report.timings)
+    print(f"{method}:")
     for case, label in (("moved", "object moved (table built)"), ("same", "unchanged (cached)")):
         stages = rows[case][0].keys()
         parts = ", ".join(
@@ -88,6 +85,29 @@ def main():
             f"  {label:28s}: median {1000 * statistics.median(ends[case]):6.1f} ms end to end"
             f"  ({parts} ms)"
         )
+    return statistics.median(ends["moved"])
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--repeat", type=int, default=9)
+    parser.add_argument(
+        "--method", nargs="+", default=["camera", "ground"], choices=("camera", "ground", "paper")
+    )
+    args = parser.parse_args()
+    addon = load_addon()
+    generate = sys.modules[addon.__name__ + ".operators.generate"]
+    scene, obj = scene_with_object()
+    print(
+        f"Blender {bpy.app.version_string}; object {len(obj.data.vertices)} vertices; "
+        f"plate 1920x1080 8-bit; map 1024x512"
+    )
+    first = None
+    for method in args.method:
+        scene.virtual_reflections.method = method.upper()
+        moved = measure(generate, obj, args.repeat, method)
+        first = first or moved
+        print(f"  {method}: moved pose {moved / first:.2f}x the {args.method[0]} method's")
     t = time.perf_counter()
     bpy.ops.vr.generate()
     print(f"  operator call (cached)      : {1000 * (time.perf_counter() - t):6.1f} ms")

@@ -138,3 +138,32 @@ def test_a_chosen_ground_object_sets_the_plane(addon, chosen):
     image = generate(scene, ball)
     got = map_colour(image, toward(scene, ball, (0.1, -1.0, -0.3)))
     np.testing.assert_allclose(got, RED if chosen else BLUE, atol=0.1)
+
+
+def test_live_update_and_every_frame_follow_the_ground(addon):
+    """The ball moves sideways: Live Update's moving pass and full pass, and Update Every
+    Frame, rebuild its map with the ground seen from the new place (the ground behind it
+    turns from red/blue split to all red once it stands at X = +1.5)."""
+    scene, ball = make_shot()
+    image = generate(scene, ball)
+    live, sequence = addon_part("operators.live"), addon_part("operators.sequence")
+    behind = (0.0, 1.5, 0.0)  # the ground point behind the ball's first place
+    assert map_colour(image, toward(scene, ball, behind))[2] > 0.3  # on the red/blue border
+    try:
+        scene.virtual_reflections.live_update = True
+        ball.location.x = 1.5
+        bpy.context.view_layer.update()
+        live.queue(scene, {ball.name})
+        assert live.flush(scene, full=False).done == [image.name]
+        assert live.flush(scene, full=True).done == [image.name]
+    finally:
+        scene.virtual_reflections.live_update = False
+        live.disable()
+    got = map_colour(image, toward(scene, ball, (1.5, 1.5, 0.0)))
+    np.testing.assert_allclose(got, RED, atol=0.1)
+    ball.location.x = -1.5
+    bpy.context.view_layer.update()
+    update = sequence.update(scene, bpy.context.evaluated_depsgraph_get(), filters={})
+    assert update.maps == [image.name], update.warnings
+    got = map_colour(image, toward(scene, ball, (-1.5, 1.5, 0.0)))
+    np.testing.assert_allclose(got, BLUE, atol=0.1)
