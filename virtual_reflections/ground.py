@@ -116,3 +116,65 @@ def ground_taps(
     level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
     index, taps_weight = mean_taps(positions, level, shapes, offsets)
     return ids, weight[ids], index, taps_weight
+
+
+def ground_taps_latlong(size, ground, up, intrinsics, width, height, shapes, offsets, first, last):
+    """`ground_taps` for a lat-long map of width ``size``, from the ground points of the texel
+    corners alone: one grid of (size / 2 + 1) x (size + 1) rays (directions from separable
+    sines and cosines, no per-texel trigonometry), each texel's n x n samples interpolated
+    bilinearly between its four corners' plate positions and its footprint their extent. A
+    texel counts as ground when the rays through all four corners meet the ground in front of
+    the camera; its weight (`ground_weight`) is taken at the mean of the corners."""
+    h = size // 2
+    lat = -np.pi * (np.arange(h + 1, dtype=np.float64) / h - 0.5)
+    lon = -2.0 * np.pi * (np.arange(size + 1, dtype=np.float64) / size - 0.5)
+    cos_lat, sin_lat = np.cos(lat)[:, None], np.sin(lat)[:, None]
+    sin_lon, cos_lon = np.sin(lon)[None, :], np.cos(lon)[None, :]
+    u = _unit(up)
+    o = np.asarray(ground[:3], np.float64)
+    fx, fy, cx, cy = intrinsics
+    # Corner rays: d = (sin lon cos lat, sin lat, cos lon cos lat); down = u . d.
+    dx, dz = sin_lon * cos_lat, cos_lon * cos_lat
+    down = u[0] * dx + u[1] * sin_lat + u[2] * dz
+    hits = down < -1e-9
+    t = np.where(hits, -float(ground[3]) / np.where(hits, down, -1.0), 0.0)
+    pz = o[2] + t * dz
+    ok = hits & (pz > 1e-6)
+    pz = np.where(ok, pz, 1.0)
+    px = cx - fx * (o[0] + t * dx) / pz
+    py = cy - fy * (o[1] + t * sin_lat) / pz
+    # Texels: all four corners on the ground.
+    valid = ok[:-1, :-1] & ok[1:, :-1] & ok[:-1, 1:] & ok[1:, 1:]
+    corners = [
+        (px[a : a + h, b : b + size], py[a : a + h, b : b + size]) for a in (0, 1) for b in (0, 1)
+    ]
+    mx = 0.25 * sum(c[0] for c in corners)
+    my = 0.25 * sum(c[1] for c in corners)
+    weight = ground_weight(mx, my, valid, width, height)
+    ids = np.flatnonzero(weight > 0)
+    taps = 4 * SAMPLES**2
+    if not ids.size:
+        return (
+            ids,
+            weight.ravel()[ids],
+            np.empty((0, taps), np.int32),
+            np.empty((0, taps), np.float32),
+        )
+    (x00, y00), (x01, y01), (x10, y10), (x11, y11) = (
+        (c[0].ravel()[ids], c[1].ravel()[ids]) for c in corners
+    )
+    positions = []
+    for sy in range(SAMPLES):
+        b = (sy + 0.5) / SAMPLES
+        for sx in range(SAMPLES):
+            a = (sx + 0.5) / SAMPLES
+            x = (1 - b) * ((1 - a) * x00 + a * x01) + b * ((1 - a) * x10 + a * x11)
+            y = (1 - b) * ((1 - a) * y00 + a * y01) + b * ((1 - a) * y10 + a * y11)
+            positions.append((np.clip(x, 0, width), np.clip(y, 0, height)))
+    xs = np.stack((x00, x01, x10, x11))
+    ys = np.stack((y00, y01, y10, y11))
+    span = np.maximum(np.ptp(np.clip(xs, 0, width), 0), np.ptp(np.clip(ys, 0, height), 0))
+    rect = np.stack((np.zeros_like(span), np.maximum(span, 1.0), np.zeros_like(span), span))
+    level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
+    index, taps_weight = mean_taps(positions, level, shapes, offsets)
+    return ids, weight.ravel()[ids], index, taps_weight

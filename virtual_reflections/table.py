@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import camera_view, ground
-from .layouts import map_shape, texel_directions
+from .layouts import latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import for_blocks
 from .params import Params
@@ -349,44 +349,52 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     distant = dataclasses.replace(params, method="camera", ground=None)
     base = _camera_table(width, height, distant, layout, size)
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
-    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
     shapes = level_shapes(height, width)
     offsets = level_offsets(shapes, base.first_level)
-    ids, share, index, weight = ground.ground_taps(
-        layout,
-        size,
-        directions,
-        params.ground,
-        params.up,
-        intrinsics,
-        width,
-        height,
-        shapes,
-        offsets,
-        base.first_level,
-        base.levels - 1,
-    )
-    taken = np.zeros(directions.shape[0], bool)
+    levels = (base.first_level, base.levels - 1)
+    if layout == "latlong":
+        ids, share, index, weight = ground.ground_taps_latlong(
+            size, params.ground, params.up, intrinsics, width, height, shapes, offsets, *levels
+        )
+    else:
+        directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+        ids, share, index, weight = ground.ground_taps(
+            layout,
+            size,
+            directions,
+            params.ground,
+            params.up,
+            intrinsics,
+            width,
+            height,
+            shapes,
+            offsets,
+            *levels,
+        )
+    # The camera view's groups without the ground's texels, then the ground's.
+    taken = np.zeros(base.shape[0] * base.shape[1], bool)
     taken[ids] = True
 
     def without(texels, idx, wts):
         keep = ~taken[texels]
         return texels[keep], idx[keep], wts[keep]
 
-    near = without(base.texels, base.index, base.weight)
-    groups = [without(*g) for g in base.groups]
+    groups = [without(base.texels, base.index, base.weight), *(without(*g) for g in base.groups)]
     full = share >= 1.0
     groups.append((ids[full], index[full], weight[full]))
     part = np.flatnonzero(~full)
     if part.size:
         w = share[part, None]
         if base.fill is not None:
+            rows, cols = np.divmod(ids[part], base.shape[1])
+            if layout == "latlong":
+                toward = latlong_directions(cols + 0.5, rows + 0.5, size)
+            else:
+                toward = directions[ids[part]]
             side = None
             if base.fill.sides == 2:
-                side = camera_view.side_weight(directions[ids[part]], intrinsics, width)
-            fill_index, fill_weight = camera_view.fill_taps(
-                directions[ids[part]], base.fill.base, side, params.up
-            )
+                side = camera_view.side_weight(toward, intrinsics, width)
+            fill_index, fill_weight = camera_view.fill_taps(toward, base.fill.base, side, params.up)
             groups.append(
                 (
                     ids[part],
@@ -398,14 +406,14 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
             groups.append((ids[part], index[part], weight[part]))
     for g in groups:
         _frozen(*g)
-    _frozen(*near)
+    near, *rest = groups
     return dataclasses.replace(
         base,
         segmentation=seg,
         texels=near[0],
         index=near[1],
         weight=near[2],
-        groups=tuple(g for g in groups if g[0].size),
+        groups=tuple(g for g in rest if g[0].size),
     )
 
 
