@@ -61,6 +61,7 @@ def test_render_shot_writes_render_and_composite(shot, tmp_path):
         (("--plate", PLATE, "--out", "{tmp}/o", "--objects", "Nobody"), "no object named"),
         (("--plate", PLATE, "--out", "{tmp}/o", "--frame", 1, "--frames", "1-2"), "not both"),
         (("--plate", PLATE, "--out", "{tmp}/o", "--resolution", 300), "--resolution must be"),
+        (("--plate", PLATE, "--out", "{tmp}/o", "--ground-object", "Nobody"), "--ground-object"),
     ],
 )
 def test_render_shot_bad_input(shot, tmp_path, args, message):
@@ -85,9 +86,13 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
     def options(*argv):
         return render_shot.batch_options(addon, render_shot.parse([*base, *argv]))
 
-    for given, expected in (("camera", "CAMERA"), ("paper", "PAPER")):
+    for given, expected in (("ground", "GROUND"), ("camera", "CAMERA"), ("paper", "PAPER")):
         batch._configure(bpy.context.scene, options("--method", given))
         assert settings.method == expected
+    floor = bpy.data.objects.new("Floor", None)
+    bpy.context.scene.collection.objects.link(floor)
+    batch._configure(bpy.context.scene, options("--method", "paper", "--ground-object", "Floor"))
+    assert settings.ground_object == floor
     batch._configure(bpy.context.scene, options())
     assert settings.method == "PAPER"  # kept, not reset to the default (Camera View)
     with pytest.raises(SystemExit) as bad:
