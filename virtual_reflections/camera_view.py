@@ -332,6 +332,25 @@ def fill_geometry(
 
 
 REC709_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+HORIZON_BIN = 90  # the bin of elevation 0: bins above it look above the horizon
+
+
+def sky_share(window, counts) -> np.ndarray:
+    """(sides * FILL_BINS,) float32: for each bin above the horizon, the share of its window's
+    plate pixels that are above the horizon too (elevations measured from the world's horizon,
+    `fill_geometry` with `up`); 1 for the bins at or below it. Where it is under 1 the window
+    reaches down into what the plate shows below the horizon (ground, walls): `fill_profile`
+    then blends toward a prior for the sky."""
+    out = np.ones((window.shape[0], FILL_BINS), np.float64)
+    for k in range(window.shape[0]):
+        lo, hi = window[k]
+        total = counts[k][hi] - counts[k][lo]
+        start = np.maximum(lo, HORIZON_BIN + 1)
+        above = np.where(hi > start, counts[k][hi] - counts[k][np.minimum(start, hi)], 0.0)
+        share = np.where(total > 0, above / np.maximum(total, 1e-12), 0.0)
+        bins = np.arange(FILL_BINS) > HORIZON_BIN
+        out[k, bins] = share[bins]
+    return out.ravel().astype(np.float32)
 
 
 def fill_profile(
@@ -342,6 +361,8 @@ def fill_profile(
     saturation: float = 1.0,
     out=None,
     energy: float = 0.0,
+    sky=None,
+    sky_gain: float = 1.0,
 ) -> np.ndarray:
     """The fill (sides * FILL_BINS, 3) float32 of one frame, sides = len(window): per side and
     elevation bin the log-average (per channel) of the pixels `level_pixels` (h, w, 3) in its
@@ -354,6 +375,10 @@ def fill_profile(
     mean of their R, G, B means) and differ only in colour: `saturation` then desaturates what
     they share and keeps the difference between them (a plate red on the left and blue on the
     right stays red on the left).
+
+    `sky` ((sides * FILL_BINS,) from `sky_share`): where under 1, the bin is blended toward a
+    neutral sky `sky_gain` times as bright as the whole plate (its log-average brightened by
+    `energy` as above): what a plate without sky says of the sky (docs/scenes3d.md).
     """
     sides = window.shape[0]
     size = sides * FILL_BINS
@@ -394,6 +419,14 @@ def fill_profile(
     elif saturation != 1.0:
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
+    if sky is not None and (sky < 1).any():
+        luma = pixels @ REC709_LUMA
+        level = math.exp(float(np.log(luma + float(eps @ REC709_LUMA)).mean()))
+        if energy > 0:
+            level *= (max(float(luma.mean()), 1e-30) / max(level, 1e-30)) ** energy
+        prior = np.float32(sky_gain * level)
+        share = sky[:, None]
+        out[:] = share * out + (1.0 - share) * prior
     return out
 
 

@@ -64,6 +64,8 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             fill.saturation,
             out=source[fill.base :],
             energy=fill.energy,
+            sky=fill.sky,
+            sky_gain=fill.sky_gain,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
     for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):

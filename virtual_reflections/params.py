@@ -56,6 +56,10 @@ class Params:
     up:        the world's up direction in the camera frame (the ground plane's normal), for
                the ground method: the fill of unseen directions is then by elevation above the
                world's horizon rather than by the camera's own elevation.
+    sky_gain:  with `up`: how many times brighter than the whole plate the sky is taken to be
+               where the plate shows none above the horizon (camera_view.sky_share); 3, from
+               the ratio of the upper to the lower hemisphere's log-average luminance in six
+               of Blender's HDRIs (docs/scenes3d.md).
     """
 
     enlarge: float = 0.075
@@ -74,6 +78,7 @@ class Params:
     fill_energy: float = 0.5
     ground: tuple | None = None
     up: tuple | None = None
+    sky_gain: float = 3.0
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -118,6 +123,8 @@ class Params:
             or self.intrinsics[1] <= 0
         ):
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
+        if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= 100.0):
+            raise ValueError(f"sky_gain must be 0..100, got {self.sky_gain}")
         for name in ("ground", "up"):
             value = getattr(self, name)
             if value is not None:

@@ -76,6 +76,8 @@ class Fill:
     bins: np.ndarray
     window: np.ndarray
     counts: np.ndarray
+    sky: np.ndarray | None = None  # camera_view.sky_share, with a world horizon (Params.up)
+    sky_gain: float = 1.0
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
@@ -231,6 +233,8 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             bins,
             window,
             counts,
+            camera_view.sky_share(window, counts) if params.up is not None else None,
+            params.sky_gain,
         )
         side = camera_view.side_weight(directions, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
