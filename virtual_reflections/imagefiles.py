@@ -22,6 +22,7 @@ import os
 import re
 import resource
 import sys
+import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,6 +132,54 @@ def quiet_stderr():
     finally:
         os.dup2(saved, 2)
         os.close(saved)
+
+
+@contextlib.contextmanager
+def held_stderr():
+    """Hold what is printed on the process's stderr (fd 2: Blender's and the libraries' own
+    lines) while the block runs: replayed when it succeeds, dropped when it raises, so that
+    a failure is the tool's one line."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        held = tempfile.TemporaryFile()
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    ok = False
+    try:
+        os.dup2(held.fileno(), 2)
+        yield
+        ok = True
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        if ok:
+            held.seek(0)
+            data = held.read()
+            if data:
+                with contextlib.suppress(OSError):
+                    os.write(2, data)
+        held.close()
+
+
+def check_complete(path: str, what: str = "image") -> tuple[int, int]:
+    """Read ``path`` whole; ImageError (one line) when it cannot be (truncated, damaged).
+    Returns its (width, height): the display window for an EXR."""
+    oiio = _oiio()
+    with quiet_stderr():
+        inp = oiio.ImageInput.open(path)
+        if inp is None:
+            raise ImageError(f"cannot read {what} {path}: {_first_line(oiio.geterror())}")
+        try:
+            spec = inp.spec()
+            pixels = inp.read_image(0, 0, 0, spec.nchannels, "uint8")
+            if pixels is None or inp.has_error:
+                raise ImageError(f"cannot read {what} {path} whole: {_first_line(inp.geterror())}")
+            return _header(spec, path).width, _header(spec, path).height
+        finally:
+            inp.close()
+            oiio.geterror()
 
 
 def verify_image(path: str, width: int, height: int, what: str | None = None) -> None:
@@ -490,16 +539,18 @@ def read_rgba(path: str) -> np.ndarray:
     oiio = _oiio()
     if not os.path.isfile(path):
         raise ImageError(f"image not found: {path}")
-    image = oiio.ImageInput.open(path)
-    if image is None:
-        raise ImageError(f"cannot read {path}: {_first_line(oiio.geterror())}")
-    try:
-        spec = image.spec()
-        pixels = image.read_image(0, 0, 0, min(spec.nchannels, 4), "float")
-        if pixels is None or image.has_error:
-            raise ImageError(f"cannot read {path}: {_first_line(image.geterror())}")
-    finally:
-        image.close()
+    with quiet_stderr():  # a damaged file: the library's own lines, then ours
+        image = oiio.ImageInput.open(path)
+        if image is None:
+            raise ImageError(f"cannot read {path}: {_first_line(oiio.geterror())}")
+        try:
+            spec = image.spec()
+            pixels = image.read_image(0, 0, 0, min(spec.nchannels, 4), "float")
+            if pixels is None or image.has_error:
+                raise ImageError(f"cannot read {path}: {_first_line(image.geterror())}")
+        finally:
+            image.close()
+            oiio.geterror()
     pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, -1)
     rgba = np.ones((spec.height, spec.width, 4), np.float32)
     if pixels.shape[2] < 3:  # grey (and alpha)
