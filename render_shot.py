@@ -174,7 +174,7 @@ def main(argv=None):
         _error(f"internal error: {type(exc).__name__}: {exc}")
         return EXIT_FAILED
     finally:
-        if previous is not None:
+        if previous is not None:  # None: a handler set outside Python (Blender's)
             signal.signal(signal.SIGTERM, previous)
 
 

@@ -105,7 +105,8 @@ def stop_on_signals():
         yield
     finally:
         for sig, handler in previous.items():
-            signal.signal(sig, handler)
+            if handler is not None:  # None: a handler set outside Python (Blender's)
+                signal.signal(sig, handler)
 
 
 def _set_engine(scene, name):
