@@ -91,6 +91,16 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
+def _resolution(text):
+    """A map width (checked by BatchOptions) or AUTO (from the object's size on screen)."""
+    if text.upper() == "AUTO":
+        return "AUTO"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a map width or AUTO, not {text!r}") from None
+
+
 def _unit(text):
     try:
         value = float(text)
@@ -110,7 +120,9 @@ def parse(argv):
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--objects", nargs="+", default=None)
     p.add_argument("--combine", choices=("REPLACE", "MODULATE", "MIX", "WORLD"), default=None)
-    p.add_argument("--resolution", type=int, default=None, help="lat-long map width")
+    p.add_argument(
+        "--resolution", type=_resolution, default=None, help="lat-long map width, or AUTO"
+    )
     p.add_argument("--triangles", type=int, default=None, help="0 = continuous")
     p.add_argument(
         "--method",
