@@ -128,7 +128,8 @@ def batch_command(shot=None, blender=None, extension=EXTENSION):
     """The batch entry's command up to its own options, and the folder to run it in.
 
     With `blender` (a path valid on every worker): `blender -b SHOT --python-exit-code 1
-    --python <ext>/render_shot.py --` (Blender returns 0 after a Python error without it). Without: the worker's own Python with the bpy module, `python -m render_shot` in the
+    --python <ext>/render_shot.py --` (Blender returns 0 after a Python error without it).
+    Without: the worker's own Python with the bpy module, `python -m render_shot` in the
     extension folder (the shot is then render_shot's positional argument)."""
     extension = str(extension)
     if blender:
