@@ -23,15 +23,41 @@ folder): one line on stderr, exit code 2, nothing written.
 
 The options go to the batch (operators/batch.py) as one `BatchOptions`
 (operators/batch_options.py), checked when it is made, right after parsing.
+
+Exit codes (docs/pipeline.md): 0 done; 2 bad input (one line, nothing written); 1 a failure
+once the run began (a full disk, a damaged plate frame, out of memory, or anything the tool
+did not expect: one line, "internal error: ..."); 130 Ctrl-C, 143 SIGTERM. Under a Blender
+binary the entry exits Blender with that code itself; also pass `--python-exit-code 1`, so
+that an error before the entry runs (a script Blender cannot read) is not exit code 0.
+Set VR_TRACEBACK=1 to see the traceback of an internal error.
 """
 
 import argparse
 import importlib.util
 import os
+import signal
 import sys
 import time
+import traceback
 
 EXIT_BAD_INPUT = 2
+EXIT_FAILED = 1
+EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a farm cancelling the task), raised where the run is, so that its temporary
+    files are removed on the way out."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+def _error(message):
+    lines = [line for line in str(message).splitlines() if line.strip()]
+    print(f"render_shot: error: {lines[0] if lines else 'failed'}", file=sys.stderr, flush=True)
 
 
 def _addon():
@@ -65,6 +91,16 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_BAD_INPUT)
 
 
+def _resolution(text):
+    """A map width (checked by BatchOptions) or AUTO (from the object's size on screen)."""
+    if text.upper() == "AUTO":
+        return "AUTO"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a map width or AUTO, not {text!r}") from None
+
+
 def _unit(text):
     try:
         value = float(text)
@@ -84,7 +120,9 @@ def parse(argv):
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--objects", nargs="+", default=None)
     p.add_argument("--combine", choices=("REPLACE", "MODULATE", "MIX", "WORLD"), default=None)
-    p.add_argument("--resolution", type=int, default=None, help="lat-long map width")
+    p.add_argument(
+        "--resolution", type=_resolution, default=None, help="lat-long map width, or AUTO"
+    )
     p.add_argument("--triangles", type=int, default=None, help="0 = continuous")
     p.add_argument(
         "--method",
@@ -129,12 +167,41 @@ def main(argv=None):
         args = parse(argv)
     except SystemExit as exc:
         return EXIT_BAD_INPUT if exc.code else 0
-    addon, own = _addon()
     try:
-        return run(bpy, addon, own, batch_options(addon, args))
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread
+        previous = None
+    try:
+        addon, own = _addon()
+        options = batch_options(addon, args)
+        with _batch(addon).stop_on_signals():
+            return run(bpy, addon, own, options)
     except (ValueError, OSError, RuntimeError) as exc:
-        print(f"render_shot: error: {str(exc).strip().splitlines()[0]}", file=sys.stderr)
+        _error(exc)
         return getattr(exc, "exit_code", EXIT_BAD_INPUT)  # 1: a frame failed mid-run
+    except MemoryError as exc:
+        _error(str(exc) or "out of memory (a smaller --scale or plate, or a bigger machine)")
+        return EXIT_FAILED
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, batch.Interrupted)
+        code = EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+        code = getattr(exc, "exit_code", code)
+        word = "terminated" if code == EXIT_TERMINATED else "interrupted"
+        print(f"render_shot: {word}", file=sys.stderr, flush=True)
+        return code
+    except Exception as exc:  # a bug: still one line and a failure, never exit code 0
+        if os.environ.get("VR_TRACEBACK"):
+            traceback.print_exc()
+        _error(f"internal error: {type(exc).__name__}: {exc}")
+        return EXIT_FAILED
+    finally:
+        if previous is not None:  # None: a handler set outside Python (Blender's)
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _batch(addon):
+    from importlib import import_module
+
+    return import_module(addon.__name__ + ".operators.batch")
 
 
 def batch_options(addon, args):
@@ -156,14 +223,19 @@ def run(bpy, addon, own, options):
     if registered:
         addon.register()
     try:
-        from importlib import import_module
-
-        batch = import_module(addon.__name__ + ".operators.batch")
-        return batch.render_shot(options, started)
+        return _batch(addon).render_shot(options, started)
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()
 
 
+def _exit(code):
+    """Leave with ``code``. Under a Blender binary, sys.exit from a --python script ends
+    Blender with that code; flush first, Blender's own exit does not."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    _exit(main())

@@ -8,15 +8,25 @@ composite <name>.<frame:04d>.<ext>, and the JSON report rewritten. Every file ap
 (written under a temporary name in the output folder, then os.replace), frames already
 complete are skipped (resume), and bad input is refused before anything is written.
 
+Nothing a user had is lost (issue 14, docs/failures.md): every output, one frame or a range,
+is written under this process's temporary name, read back whole (`imagefiles.commit`) and
+only then renamed over the previous file; an output that would replace a plate is refused;
+a run locks the outputs it writes (batch_lock.py), so a second run on the same frames is
+refused instead of deleting the first's temporary files; a plate frame that cannot be read
+whole fails its frame (exit 1, named in the report) instead of rendering half grey.
+
 Rendering uses Blender's own renderer; the final composite (render over plate) is computed in
 NumPy from the saved RGBA render, so it does not depend on the compositor's API, which differs
 between Blender 4.5 and 5.x. Images are written through Blender (save_render with the scene's
 colour management), so no extra Python package is needed inside Blender.
 """
 
+import contextlib
+import gc
 import json
 import os
-import re
+import signal
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -26,11 +36,77 @@ import numpy as np
 
 from ..virtual_reflections.composite import over, resize_nearest
 from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
-from ..virtual_reflections.imagefiles import read_rgba, write_rgba
+from ..virtual_reflections.imagefiles import (
+    HALF_MAX,
+    ImageError,
+    check_complete,
+    commit,
+    held_stderr,
+    read_header,
+    read_rgba,
+    remove_stale_temps,
+    same_file,
+    temp_path,
+    write_rgba,
+)
+from ..virtual_reflections.memory import check_fits, plate_job_bytes
 from . import compositor, generate, interreflect, plate, sequence, shading
+from .batch_lock import OutputLock
 from .batch_options import BatchOptions
 
 ENGINES = {"CYCLES": ("CYCLES",), "EEVEE": ("BLENDER_EEVEE_NEXT", "BLENDER_EEVEE")}
+
+
+# --- Ctrl-C and SIGTERM ---------------------------------------------------------------------------
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (exit code 130) or SIGTERM (143): the run stops where it is, its temporary
+    files are removed on the way out, finished frames stay."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+        self.exit_code = 143 if signum == signal.SIGTERM else 130
+
+
+_signalled = []  # signals received while a run is on
+
+
+def _on_signal(signum, frame):
+    _signalled.append(signum)
+    raise Interrupted(signum)
+
+
+def _raise_if_signalled():
+    """A signal that arrived during a render: Blender's render catches the exception the
+    handler raised (and prints it), so raise it again here."""
+    if _signalled:
+        # Blender printed the exception the handler raised in the render engine and keeps it
+        # (sys.last_*), with the engine's frame: let the engine go now, while stderr is held.
+        for name in ("last_exc", "last_type", "last_value", "last_traceback"):
+            if hasattr(sys, name):
+                setattr(sys, name, None)
+        gc.collect()
+        raise Interrupted(_signalled[-1])
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """Ctrl-C and SIGTERM raise Interrupted while the block runs (main thread only)."""
+    _signalled.clear()
+    previous = {}
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, _on_signal)
+    except ValueError:  # not the main thread
+        pass
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            if handler is not None:  # None: a handler set outside Python (Blender's)
+                signal.signal(sig, handler)
 
 
 def _set_engine(scene, name):
@@ -58,21 +134,64 @@ def _objects(scene, names):
     return [o for o in scene.objects if o.type in shading.REFLECTABLE and o.visible_get()]
 
 
-def load_plate(path):
+def check_plate_file(path, what="plate"):
+    """A plate file as the batch reads it (through Blender): refuse, one line, what Blender
+    would misread (an EXR whose data window is not its display window: Blender reads the
+    data window, so the bounds would land elsewhere), what cannot fit in memory, and what
+    is not a picture. Returns its PlateHeader."""
+    if os.path.isdir(path):
+        raise ValueError(f"{what} is a folder, not an image file: {path}")
     if not os.path.isfile(path):
         raise ValueError(f"plate not found: {path}")
+    try:
+        header = read_header(path)
+    except ImageError as exc:
+        raise ValueError(f"{what}: {exc}") from exc
+    check_fits(
+        plate_job_bytes(header.width, header.height, 4096 * 2048),
+        f"the {header.width}x{header.height} plate {path}",
+    )
+    if header.data != (0, 0, header.width, header.height):
+        x, y, w, h = header.data
+        raise ValueError(
+            f"{what} {path}: its data window ({w}x{h} at {x},{y}) is not its display window "
+            f"({header.width}x{header.height}); crop or pad it to the display window first "
+            "(e.g. oiiotool IN --fullpixels -o OUT)"
+        )
+    return header
+
+
+def load_plate(path):
+    check_plate_file(path)
+    check_complete(path, "plate")
     image = bpy.data.images.load(os.path.abspath(path), check_existing=True)
     plate.image_pixels(image)  # raises a clear ValueError for unreadable plates
     return image
 
 
 def _save(scene, pixels_rgb, path, fmt):
-    """Save (H, W, 3) linear pixels through Blender: EXR linear, PNG with the scene's view."""
+    """Save (H, W, 3) linear pixels through Blender (EXR linear half floats, clamped to
+    +-65504; PNG with the scene's view), atomically: a temporary file, read back whole, then
+    renamed. WriteError (exit 1) if it cannot be written whole; ``path`` is then untouched."""
+    h, w = pixels_rgb.shape[:2]
+    temp = temp_path(path)
+    try:
+        with held_stderr():
+            _save_image(scene, pixels_rgb, temp, fmt)
+        commit(temp, path, w, h)
+    finally:
+        if os.path.exists(temp):
+            os.remove(temp)
+
+
+def _save_image(scene, pixels_rgb, path, fmt):
     h, w = pixels_rgb.shape[:2]
     image = bpy.data.images.new("VR batch output", w, h, alpha=False, float_buffer=True)
     try:
         rgba = np.ones((h, w, 4), np.float32)
         rgba[..., :3] = pixels_rgb[::-1]
+        if fmt == "OPEN_EXR":
+            np.clip(rgba, -HALF_MAX, HALF_MAX, out=rgba)  # a sun stays finite in half floats
         image.pixels.foreach_set(rgba.ravel())
         settings = scene.render.image_settings
         previous = (settings.file_format, settings.color_mode, settings.color_depth)
@@ -125,6 +244,51 @@ def _shot_name(options: BatchOptions):
     return options.name or os.path.splitext(os.path.basename(bpy.data.filepath or "shot"))[0]
 
 
+def _render_size(scene):
+    """The render's (w, h) in pixels; ValueError (one line) when under one pixel."""
+    percent = scene.render.resolution_percentage
+    size = (
+        scene.render.resolution_x * percent // 100,
+        scene.render.resolution_y * percent // 100,
+    )
+    if min(size) < 1:
+        raise ValueError(
+            f"the render would be {size[0]}x{size[1]} pixels "
+            f"({scene.render.resolution_x}x{scene.render.resolution_y} at {percent}%): "
+            "under one pixel; raise --scale"
+        )
+    return size
+
+
+def _not_a_plate(outputs, plates):
+    """ValueError (one line) when an output would replace a plate file."""
+    for output in outputs:
+        for plate_file in plates:
+            if same_file(output, plate_file):
+                raise ValueError(
+                    f"output {output} is the plate itself: choose another --out or --name"
+                )
+
+
+def _render_to(scene, path):
+    """Render the scene into ``path`` (an RGBA float EXR) through a temporary file, read back
+    and renamed; Blender's own error lines are dropped when it fails (the tool says it)."""
+    temp = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
+    scene.render.filepath = temp
+    try:
+        with held_stderr():
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+            _raise_if_signalled()
+            rgba = read_rgba(temp)
+        commit(temp, path, rgba.shape[1], rgba.shape[0])
+    except ImageError as exc:
+        raise BatchError(str(exc).replace(temp, path)) from exc
+    finally:
+        if os.path.exists(temp):
+            os.remove(temp)
+    return rgba
+
+
 def render_shot(options: BatchOptions, started):
     """The batch entry: one frame (the historical outputs) or a frame range (`render_frames`).
     Returns the exit code; raises ValueError/OSError/RuntimeError (one line) on bad input."""
@@ -137,15 +301,35 @@ def render_shot(options: BatchOptions, started):
     if options.frames is not None or source.kind != "still":
         return render_frames(options, started, source)
     settings = scene.virtual_reflections
-    stamp = lambda: f"{time.perf_counter() - started:6.2f} s"  # noqa: E731
     if options.frame is not None:
         scene.frame_set(options.frame)
     image = load_plate(options.plate)
     settings.plate_image = image
     compositor.setup_from_plate(scene, image)
     _configure(scene, options)
-    os.makedirs(options.out, exist_ok=True)
+    _render_size(scene)
     name = _shot_name(options)
+    outs = [
+        os.path.abspath(os.path.join(options.out, f"{name}{suffix}"))
+        for suffix in ("_render.exr", "_composite.png", "_composite.exr")
+    ]
+    _not_a_plate(outs, [options.plate])
+    _check_folder(options.out)
+    with OutputLock(os.path.abspath(options.out), name):
+        remove_stale_temps(
+            os.path.abspath(options.out),
+            [os.path.splitext(os.path.basename(o))[0] for o in outs],
+            live_ok=True,
+        )
+        try:
+            return _one_frame(scene, options, image, name, started)
+        except OSError as exc:  # a write failed (a full disk): not bad input
+            raise BatchError(f"{exc.strerror or exc}: {exc.filename or options.out}") from exc
+
+
+def _one_frame(scene, options, image, name, started):
+    """One frame's render and composites (render_shot without --frames)."""
+    stamp = lambda: f"{time.perf_counter() - started:6.2f} s"  # noqa: E731
     print(
         f"[{stamp()}] plate {image.name} {image.size[0]}x{image.size[1]}, "
         f"render {scene.render.resolution_x}x{scene.render.resolution_y} "
@@ -181,12 +365,10 @@ def render_shot(options: BatchOptions, started):
     t = time.perf_counter()
     render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
     _render_settings(scene)
-    scene.render.filepath = render_path
-    bpy.ops.render.render(write_still=True, scene=scene.name)
+    rgba = _render_to(scene, render_path)
     print(f"[{stamp()}] rendered {render_path} in {time.perf_counter() - t:.2f} s")
 
     t = time.perf_counter()
-    rgba = read_rgba(render_path)
     pixels, _ = plate.pixels(scene, image)
     comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
     _save_composite(scene, comp, options.out, name, stamp, t)
@@ -211,7 +393,11 @@ def _render_shot_passes(scene, objects, passes, render_path, log=print):
         raise ValueError("no object to reflect the plate (use --objects or mark objects)")
     pixels, _ = plate.pixels(scene)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    composite, rgba, reports = interreflect.render_passes(scene, depsgraph, objects, pixels, passes)
+    with held_stderr():
+        composite, rgba, reports = interreflect.render_passes(
+            scene, depsgraph, objects, pixels, passes
+        )
+        _raise_if_signalled()
     for warning in reports[0].warnings:
         log(f"warning: {warning}")
     for report in reports:
@@ -264,16 +450,31 @@ class PlateSource:
         return os.path.abspath(self.text)
 
     def check(self, frames):
-        """Refuse, before anything is written, frames whose plate is missing."""
+        """Refuse, before anything is written, frames whose plate is missing, a sequence
+        whose frames differ in size (bounds smoothed across sizes would mix coordinates),
+        and plate files Blender would misread (`check_plate_file`)."""
         if self.kind == "sequence":
+            first = None
             for frame in frames:
                 path = self.file(frame)
                 if not os.path.isfile(path):
                     raise ValueError(f"plate frame {frame} is missing: {path}")
+                header = check_plate_file(path, f"plate frame {frame}")
+                size = (header.width, header.height)
+                if first is None:
+                    first = (frame, size)
+                elif size != first[1]:
+                    raise ValueError(
+                        f"plate frame {frame} is {size[0]}x{size[1]}, frame {first[0]} is "
+                        f"{first[1][0]}x{first[1][1]}: the frames of a sequence must have one "
+                        f"size ({path})"
+                    )
             return
         path = self.file(frames[0])
         if not os.path.isfile(path):
             raise ValueError(f"plate not found: {path}")
+        if self.kind == "still":
+            check_plate_file(path)
         if self.kind == "movie":
             image = self.load(frames[0])
             count = image.frame_duration
@@ -317,21 +518,8 @@ def _check_folder(out):
         raise ValueError(f"output folder not writable: {out} ({exc.strerror or exc})") from exc
 
 
-def _temp(path, tag="tmp"):
-    """A temporary name beside ``path`` for an atomic write: hidden, this process's."""
-    folder, base = os.path.split(path)
-    stem, ext = os.path.splitext(base)
-    return os.path.join(folder, f".{stem}.{os.getpid()}.{tag}{ext}")
-
-
-def _remove_stale(out, names):
-    """Delete temporary files a killed run left for these outputs (never another file)."""
-    stems = {os.path.splitext(os.path.basename(n))[0] for n in names}
-    pattern = re.compile(r"^\.(.+)\.\d+\.(?:tmp|render)(\.\w+)?$")
-    for entry in os.listdir(out):
-        m = pattern.match(entry)
-        if m and m.group(1) in stems:
-            os.remove(os.path.join(out, entry))
+def _stems(paths):
+    return [os.path.splitext(os.path.basename(p))[0] for p in paths]
 
 
 def _complete(path, size):
@@ -346,13 +534,18 @@ def _complete(path, size):
 
 
 def _write_json(path, data):
-    temp = _temp(path)
+    temp = temp_path(path)
     with open(temp, "w", encoding="utf-8") as f:
         json.dump(data, f, indent=1, default=_plain)
         f.write("\n")
         f.flush()
         os.fsync(f.fileno())
     os.replace(temp, path)
+
+
+def _one_line(exc):
+    lines = [line for line in str(exc).splitlines() if line.strip()]
+    return lines[0] if lines else type(exc).__name__
 
 
 def _plain(value):
@@ -396,17 +589,32 @@ def render_frames(options: BatchOptions, started, source):
     """Render a frame range: per frame its plate, maps, render and composite; see the module
     docstring. Returns 0; raises ValueError (one line) for bad input before writing."""
     scene = bpy.context.scene
-    settings = scene.virtual_reflections
     frames = _frames(options, scene)
+    fmt = options.format
+    out = os.path.abspath(options.out)
+    name = _shot_name(options)
+    report_path = os.path.abspath(options.report or os.path.join(out, f"{name}.report.json"))
+    if os.path.isdir(report_path):
+        raise ValueError(f"--report is a folder, not a file: {report_path}")
+    source.check(frames)
+    outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
+    plates = {source.file(f) for f in frames} if source.kind == "sequence" else {source.file(0)}
+    _not_a_plate([*outputs.values(), report_path], plates)
+    _check_folder(out)
+    if os.path.dirname(report_path) != out:
+        _check_folder(os.path.dirname(report_path))
+    with OutputLock(out, name, frames):
+        return _render_frames(options, started, source, frames, outputs, report_path)
+
+
+def _render_frames(options, started, source, frames, outputs, report_path):
+    """render_frames once the run owns its frames' outputs (OutputLock)."""
+    scene = bpy.context.scene
+    settings = scene.virtual_reflections
     fmt = options.format
     passes = options.passes
     out = os.path.abspath(options.out)
     name = _shot_name(options)
-    report_path = os.path.abspath(options.report or os.path.join(out, f"{name}.report.json"))
-    source.check(frames)
-    _check_folder(out)
-    if os.path.dirname(report_path) != out:
-        _check_folder(os.path.dirname(report_path))
 
     # The scene, from the first frame's plate.
     scene.frame_set(frames[0])
@@ -415,12 +623,11 @@ def render_frames(options: BatchOptions, started, source):
     compositor.setup_from_plate(scene, image)
     _configure(scene, options)
     _render_settings(scene)
-    size = (
-        scene.render.resolution_x * scene.render.resolution_percentage // 100,
-        scene.render.resolution_y * scene.render.resolution_percentage // 100,
-    )
-    outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
-    _remove_stale(out, [*outputs.values(), report_path])
+    size = _render_size(scene)
+    # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
+    # run's. The report may be shared with a live run on other frames: only dead runs' go.
+    remove_stale_temps(out, _stems(outputs.values()), live_ok=True)
+    remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
     use_passes = not options.no_reflections and passes != 1
     header = {
         "version": 1,
@@ -500,7 +707,11 @@ def render_frames(options: BatchOptions, started, source):
             try:
                 entry = job.render(frame, path)
             except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
-                raise BatchError(f"frame {frame}: {exc}") from exc
+                error = f"frame {frame}: {_one_line(exc)}"
+                entries[frame] = {"frame": frame, "status": "failed", "error": error}
+                with contextlib.suppress(OSError, ValueError):
+                    _write_json(report_path, _report(header, entries, frames, warnings, started))
+                raise BatchError(error) from exc
             entries[frame] = entry
             _write_json(report_path, _report(header, entries, frames, warnings, started))
             entry_seconds = time.perf_counter() - t0
@@ -560,24 +771,28 @@ class FrameJob:
         scene.frame_set(frame)
         timed("frame_set", t)
         t = time.perf_counter()
+        plate_file = source.file(frame)
+        if source.kind != "movie":  # Blender would render a truncated file's rest grey
+            check_complete(plate_file, "plate")
         image = source.load(frame)
         pixels, info = plate.pixels(scene, image)
-        plate_file = source.file(frame)
         timed("plate", t)
         entry = {"frame": frame, "status": "rendered", "plate": plate_file}
         changes = {}
         pass_reports = []
         if self.use_passes:
             t = time.perf_counter()
-            comp, rgba, reports = interreflect.render_passes(
-                scene,
-                bpy.context.evaluated_depsgraph_get(),
-                objects,
-                pixels,
-                options.passes,
-                options.tolerance or interreflect.TOLERANCE,
-                options.max_passes or interreflect.R_MAX,
-            )
+            with held_stderr():
+                comp, rgba, reports = interreflect.render_passes(
+                    scene,
+                    bpy.context.evaluated_depsgraph_get(),
+                    objects,
+                    pixels,
+                    options.passes,
+                    options.tolerance or interreflect.TOLERANCE,
+                    options.max_passes or interreflect.R_MAX,
+                )
+                _raise_if_signalled()
             timed("passes", t)
             pass_reports = [_pass_report(r) for r in reports]
             for r in reports:
@@ -610,26 +825,24 @@ class FrameJob:
             else:
                 summary = "no reflections"
             t = time.perf_counter()
-            render_path = os.path.splitext(_temp(path, "render"))[0] + ".exr"
+            render_path = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
             scene.render.filepath = render_path
             try:
-                bpy.ops.render.render(write_still=True, scene=scene.name)
-                timed("render", t)
-                t = time.perf_counter()
-                rgba = read_rgba(render_path)
+                with held_stderr():
+                    bpy.ops.render.render(write_still=True, scene=scene.name)
+                    _raise_if_signalled()
+                    timed("render", t)
+                    t = time.perf_counter()
+                    rgba = read_rgba(render_path)
+            except ImageError as exc:  # Blender could not write it whole (a full disk)
+                raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
             finally:
                 if os.path.exists(render_path):
                     os.remove(render_path)
             comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
             timed("composite", t)
         t = time.perf_counter()
-        temp = _temp(path)
-        try:
-            _save(scene, comp, temp, FORMATS[self.format])
-            os.replace(temp, path)
-        finally:
-            if os.path.exists(temp):
-                os.remove(temp)
+        _save(scene, comp, path, FORMATS[self.format])  # atomic and verified
         timed("write", t)
         times["total"] = round(sum(v for k, v in times.items()), 4)
         entry.update(

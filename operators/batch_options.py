@@ -23,6 +23,7 @@ ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
 MAX_SMOOTHING = 0.95
+RANGES = {"scale": (1, 10000), "samples": (1, 1 << 24), "max_passes": (1, 100)}
 
 
 def _words(choices):
@@ -49,7 +50,7 @@ class BatchOptions:
     blend: str | None = None  # the shot to open; None: the file already open
     objects: tuple[str, ...] | None = None  # None: marked objects, else visible mesh-likes
     combine: str | None = None  # REPLACE, MODULATE, MIX or WORLD
-    resolution: int | None = None  # lat-long map width
+    resolution: int | str | None = None  # lat-long map width, or "AUTO"
     triangles: int | None = None  # 0: continuous front face
     method: str | None = None  # ground, camera or paper
     ground_object: str | None = None  # the ground for --method ground (None: the shot's)
@@ -95,12 +96,35 @@ class BatchOptions:
             value = getattr(self, key)
             if (value is not None or key == "format") and value not in choices:
                 raise ValueError(f"--{key} must be {_words(choices)}, not {value!r}")
-        if self.resolution is not None and self.resolution not in RESOLUTIONS:
-            raise ValueError(f"--resolution must be {_words(RESOLUTIONS)}, not {self.resolution!r}")
+        if self.resolution is not None and self.resolution not in (*RESOLUTIONS, "AUTO"):
+            raise ValueError(
+                f"--resolution must be {_words((*RESOLUTIONS, 'AUTO'))}, not {self.resolution!r}"
+            )
         for key in ("triangles", "samples", "scale", "max_passes"):
             value = getattr(self, key)
             if value is not None and not (_is_int(value) and value >= 0):
                 raise ValueError(f"--{key.replace('_', '-')} must be a number >= 0, not {value!r}")
+        for key, (low, high) in RANGES.items():
+            value = getattr(self, key)
+            if value is not None and value != 0 and not low <= value <= high:
+                raise ValueError(
+                    f"--{key.replace('_', '-')} must be from {low} to {high} (0: the shot's "
+                    f"own), not {value!r}"
+                )
+        if self.max_passes == 0:
+            raise ValueError("--max-passes must be at least 1, not 0")
+        t = self.triangles
+        if t is not None and t != 0 and not (t % 4 == 0 and 4 <= t <= 1024):
+            raise ValueError(f"--triangles must be 0 or a multiple of 4 from 4 to 1024, not {t}")
+        if self.name is not None and (
+            not self.name.strip()
+            or self.name.startswith(".")
+            or os.sep in self.name
+            or (os.altsep and os.altsep in self.name)
+        ):
+            raise ValueError(
+                f"--name must be a file name without a folder or a leading dot, not {self.name!r}"
+            )
         if self.frame is not None and not _is_int(self.frame):
             raise ValueError(f"--frame must be a frame number, not {self.frame!r}")
         if self.passes != "auto" and not (_is_int(self.passes) and self.passes >= 1):

@@ -127,15 +127,17 @@ def plan_chunks(frames, chunk_size):
 def batch_command(shot=None, blender=None, extension=EXTENSION):
     """The batch entry's command up to its own options, and the folder to run it in.
 
-    With `blender` (a path valid on every worker): `blender -b SHOT --python <ext>/render_shot.py
-    --`. Without: the worker's own Python with the bpy module, `python -m render_shot` in the
+    With `blender` (a path valid on every worker): `blender -b SHOT --python-exit-code 1
+    --python <ext>/render_shot.py --` (Blender returns 0 after a Python error without it).
+    Without: the worker's own Python with the bpy module, `python -m render_shot` in the
     extension folder (the shot is then render_shot's positional argument)."""
     extension = str(extension)
     if blender:
         if shot is None:
             raise ValueError("a Blender binary needs the shot in its command line")
         script = os.path.join(extension, "render_shot.py")
-        return [blender, "-b", str(shot), "--python", script, "--"], extension
+        command = [blender, "-b", str(shot), "--python-exit-code", "1", "--python", script, "--"]
+        return command, extension
     return [WORKER_PYTHON, "-m", "render_shot"], extension
 
 

@@ -12,8 +12,13 @@ accepted as an older name of `camera`. segment draws the paper's regions whateve
 
 --bbox is in plate pixels, origin top-left, y down, X1/Y1 exclusive; it may reach outside the
 plate. OUT's extension picks the format (.exr with the standard envmap attribute, .hdr, or
-sRGB-encoded .png/.jpg/.tif). Bad input prints one line on stderr and exits with code 2,
-without a traceback and without leaving a partial output file.
+sRGB-encoded .png/.jpg/.tif). Half-float EXR values beyond 65504 are clamped (--float keeps
+them). OUT is written under a temporary name, read back whole and renamed: an existing OUT is
+replaced only by a complete file.
+
+Exit codes: 0 done; 2 bad input (one line on stderr, nothing written); 1 a failure while
+working (a full disk, not enough memory: one line, nothing replaced); 130 interrupted
+(Ctrl-C), 143 terminated (SIGTERM), temporary files removed. Never a traceback for these.
 
 The accuracy study and the speed benchmark are not part of the engine: `python -m study`.
 """
@@ -21,14 +26,32 @@ The accuracy study and the speed benchmark are not part of the engine: `python -
 from __future__ import annotations
 
 import argparse
+import math
+import signal
 import sys
 import time
 
 from .envmap import DEFAULT_SIZE
-from .imagefiles import ImageError, check_writable, read_plate, write_map
+from .imagefiles import (
+    ImageError,
+    check_writable,
+    read_header,
+    read_plate,
+    same_file,
+    write_map,
+)
+from .memory import check_fits, plate_job_bytes
 from .params import METHOD_ALIASES, METHODS, Params
 
 EXIT_BAD_INPUT = 2
+EXIT_FAILED = 1
+EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
+WIDTH_RANGE = {"latlong": (8, 16384), "cube": (4, 8192)}  # --width, per layout
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the process is, so that temporary files are removed."""
 
 
 class UsageError(Exception):
@@ -108,9 +131,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _check_files(args) -> None:
+    """The plate and the output are two files, and the output can be written."""
+    check_writable(args.output)
+    if same_file(args.plate, args.output):
+        raise UsageError(f"the output is the plate itself: {args.output} (choose another -o)")
+
+
+def _check_width(args) -> None:
+    if args.width is None:
+        return
+    low, high = WIDTH_RANGE[args.layout]
+    if not low <= args.width <= high:
+        raise UsageError(
+            f"--width for a {args.layout} map must be from {low} to {high}, not {args.width}"
+        )
+
+
 def _params(args, method=None) -> Params:
     """Params from the options; `method` overrides --method (segment: the paper's regions)."""
     x0, y0, x1, y1 = args.bbox
+    if not all(math.isfinite(v) for v in args.bbox):
+        raise UsageError(f"--bbox needs four finite numbers, got {' '.join(map(str, args.bbox))}")
     if not (x0 < x1 and y0 < y1):
         raise UsageError(f"--bbox needs X0 < X1 and Y0 < Y1, got {x0:g} {y0:g} {x1:g} {y1:g}")
     method = method or METHOD_ALIASES.get(args.method, args.method)
@@ -136,19 +178,28 @@ def run_envmap(args) -> None:
     from .table import lookup_table
 
     params = _params(args)
-    check_writable(args.output)
+    _check_width(args)
+    _check_files(args)
     started = time.perf_counter()
+    size = args.width or DEFAULT_SIZE[args.layout]
+    header = read_header(args.plate)
+    map_pixels = size * size // 2 if args.layout == "latlong" else 6 * size * size
+    check_fits(
+        plate_job_bytes(header.width, header.height, map_pixels),
+        f"a map from the {header.width}x{header.height} plate {args.plate}",
+    )
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]
-    size = args.width or DEFAULT_SIZE[args.layout]
     try:
         table = lookup_table(w, h, tuple(args.bbox), params, args.layout, size)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
     env = apply_table(table, plate.pixels)
-    write_map(args.output, env, layout=args.layout, half=not args.float)
+    clamped = write_map(args.output, env, layout=args.layout, half=not args.float)
     seg = table.segmentation
     notes = []
+    if clamped:
+        notes.append(f"warning: clamped {clamped} values above 65504 to fit half floats (--float)")
     if plate.nonfinite:
         notes.append(f"replaced {plate.nonfinite} NaN/Inf values")
     if seg.shrunk:
@@ -165,7 +216,12 @@ def run_segment(args) -> None:
     from .segmentation import segment
 
     params = _params(args, method="paper")  # the regions are the paper's whatever --method says
-    check_writable(args.output)
+    _check_files(args)
+    header = read_header(args.plate)
+    check_fits(
+        plate_job_bytes(header.width, header.height) + header.width * header.height * 24,
+        f"a segmentation of the {header.width}x{header.height} plate {args.plate}",
+    )
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]
     seg = segment(w, h, args.bbox, params)
@@ -176,17 +232,55 @@ def run_segment(args) -> None:
     )
 
 
+def _numbers_after_bbox(argv):
+    """``--bbox -1e2 ...``: argparse takes a token like -1e2 for an option; a leading space
+    keeps it a number (float() ignores it)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    for i, token in enumerate(argv):
+        if token == "--bbox":
+            for j in range(i + 1, min(i + 5, len(argv))):
+                try:
+                    float(argv[j])
+                except ValueError:
+                    break
+                if argv[j].startswith("-"):
+                    argv[j] = " " + argv[j]
+    return argv
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+def _error(message) -> None:
+    lines = [line for line in str(message).splitlines() if line.strip()]
+    print(f"virtual_reflections: error: {lines[0] if lines else 'failed'}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave signals alone
+        previous = None
+    try:
+        args = build_parser().parse_args(_numbers_after_bbox(argv))
         if args.command == "envmap":
             run_envmap(args)
         else:
             run_segment(args)
     except (UsageError, ImageError) as exc:
-        print(f"virtual_reflections: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        _error(exc)
+        return getattr(exc, "exit_code", EXIT_BAD_INPUT)
+    except MemoryError as exc:
+        _error(str(exc) or "out of memory (try a smaller --width or plate)")
+        return EXIT_FAILED
+    except Terminated:
+        print("virtual_reflections: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("virtual_reflections: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return 0

@@ -116,7 +116,7 @@ def test_frozen(batch_options):
         ({"combine": "ADD"}, "--combine must be REPLACE, MODULATE, MIX or WORLD, not 'ADD'"),
         ({"method": "CAMERA"}, "--method must be ground, camera or paper"),
         ({"engine": "WORKBENCH"}, "--engine must be CYCLES or EEVEE"),
-        ({"resolution": 300}, "--resolution must be 256, 512, 1024, 2048 or 4096, not 300"),
+        ({"resolution": 300}, "--resolution must be 256, 512, 1024, 2048, 4096 or AUTO, not 300"),
         ({"samples": -1}, "--samples must be a number >= 0"),
         ({"scale": 12.5}, "--scale must be a number >= 0"),
         ({"max_passes": -2}, "--max-passes must be a number >= 0"),
@@ -167,3 +167,28 @@ def test_render_samples_options_are_batch_options(batch_options):
     )
     # The rest as render_shot leaves it by default.
     assert (with_.passes, with_.frames, with_.frame, with_.resolution) == (1, None, None, None)
+
+
+# Issue 14, case 11: every option checked up front, one line (docs/failures.md).
+@pytest.mark.parametrize(
+    "fields,message",
+    [
+        ({"resolution": 0}, "--resolution must be"),
+        ({"resolution": 3}, "--resolution must be"),
+        ({"triangles": 7}, "--triangles must be 0 or a multiple of 4"),
+        ({"samples": -5}, "--samples must be a number >= 0"),
+        ({"scale": -50}, "--scale must be a number >= 0"),
+        ({"scale": 20000}, "--scale must be from 1 to 10000"),
+        ({"max_passes": 0}, "--max-passes must be at least 1"),
+        ({"tolerance": -1}, "--tolerance must be a number >= 0"),
+        ({"name": "../x"}, "--name must be a file name"),
+        ({"name": ".hidden"}, "--name must be a file name"),
+    ],
+)
+def test_bad_values_are_refused_up_front(batch_options, fields, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(")):
+        batch_options.BatchOptions(plate="p.png", out="out", **fields)
+
+
+def test_resolution_auto_can_be_passed(batch_options):
+    assert batch_options.BatchOptions(plate="p", out="o", resolution="AUTO").resolution == "AUTO"

@@ -99,6 +99,8 @@ def test_batch_commands():
         "/opt/blender/blender",
         "-b",
         "/s/shot.blend",
+        "--python-exit-code",  # issue 14, case 5: a Python error is never exit code 0
+        "1",
         "--python",
         str(ROOT / "render_shot.py"),
         "--",

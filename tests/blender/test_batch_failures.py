@@ -1,0 +1,267 @@
+"""The batch entry (`python -m render_shot`, bpy module) under the failures of issue 14
+(docs/failures.md): full disk, plate == output, two runs on one folder, damaged and
+mismatched plate frames, windowed EXR plates, bad options, memory, Ctrl-C/SIGTERM.
+Full disk: a file-size limit (RLIMIT_FSIZE) in the child; every write past it fails."""
+
+import json
+import pathlib
+import resource
+import signal
+import subprocess
+import sys
+import time
+
+import bpy
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+from sequence_shots import build_scene, write_plates
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture
+def shot(clean_file, tmp_path):
+    plates = write_plates(tmp_path)
+    build_scene()
+    path = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path, plates
+
+
+def start(*args, fsize=None, address_space=None):
+    def limits():
+        if fsize is not None:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+        if address_space is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
+
+    return subprocess.Popen(
+        [sys.executable, "-m", "render_shot", *map(str, args)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=limits,
+    )
+
+
+def run(*args, **limits):
+    proc = start(*args, **limits)
+    out, err = proc.communicate(timeout=300)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def pattern(plates):
+    return str(plates[0]).replace("0001", "####")
+
+
+def one_line(r):
+    lines = r.stderr.strip().splitlines()
+    return len(lines) == 1 and lines[0].startswith("render_shot: ") and "Traceback" not in r.stderr
+
+
+def hidden(folder):
+    return sorted(p.name for p in pathlib.Path(folder).iterdir() if p.name.startswith("."))
+
+
+SMALL = ("--resolution", 256)
+
+
+# 2: the single-frame outputs are atomic: a full disk keeps the previous good files.
+def test_single_frame_full_disk_keeps_previous_outputs(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    args = (blend, "--plate", plates[0], "--out", out, *SMALL, "--scale", 400)
+    first = run(*args)
+    assert first.returncode == 0, first.stderr[-2000:]
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(before) == {"shot_render.exr", "shot_composite.png", "shot_composite.exr"}
+    r = run(*args, fsize=5_000)
+    assert r.returncode == 1 and one_line(r), r.stderr[-2000:]
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+# 10: a full disk during a frame range: one line, exit 1, frames written stay whole.
+def test_frame_range_full_disk_is_one_line_exit_1(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1-3", *SMALL)
+    r = run(*args, "--scale", 400, fsize=20_000)
+    assert r.returncode == 1 and one_line(r), r.stderr[-2000:]
+    assert "frame " in r.stderr
+    assert hidden(out) == []
+    for frame in out.glob("shot.*.exr"):
+        assert oiio.ImageBuf(str(frame)).get_pixels(oiio.FLOAT) is not None
+
+
+# 3: the plate is never an output.
+def test_plate_as_an_output_is_refused(shot, tmp_path):
+    blend, plates = shot
+    folder = plates[0].parent
+    copy = folder / "shot.0001.png"
+    copy.write_bytes(plates[0].read_bytes())
+    r = run(blend, "--plate", copy, "--out", folder, "--frames", 1, "--format", "png", *SMALL)
+    assert r.returncode == 2 and one_line(r) and "plate" in r.stderr, r.stderr[-2000:]
+    assert copy.read_bytes() == plates[0].read_bytes()
+    still = folder / "shot_composite.png"
+    still.write_bytes(plates[0].read_bytes())
+    r = run(blend, "--plate", still, "--out", folder, *SMALL)
+    assert r.returncode == 2 and one_line(r) and "plate" in r.stderr, r.stderr[-2000:]
+    assert still.read_bytes() == plates[0].read_bytes()
+
+
+# 4: a second run on the frames a live run is rendering is refused and deletes nothing.
+def test_second_run_on_a_live_runs_frames_is_refused(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1-3", *SMALL)
+    first = start(*args, "--scale", 800, "--samples", 32)
+    try:
+        deadline = time.time() + 120
+        while not (out.exists() and any(p.name.endswith(".lock") for p in out.iterdir())):
+            assert time.time() < deadline and first.poll() is None, first.communicate()
+            time.sleep(0.05)
+        temp = out / f".shot.0002.{first.pid}.tmp.exr"
+        temp.write_bytes(b"in progress")  # as if the first run were writing frame 2
+        r = run(*args)
+        assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+        assert str(first.pid) in r.stderr and "in use" in r.stderr
+        assert temp.exists()
+        temp.unlink()
+        _, err = first.communicate(timeout=300)
+        assert first.returncode == 0, err[-2000:]
+    finally:
+        if first.poll() is None:
+            first.kill()
+    # Once it is done the folder is free again (and a dead run's lock never blocks).
+    r = run(*args)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
+# 6: a truncated frame in a sequence fails, named, never renders grey.
+def test_truncated_plate_frame_fails_and_is_named(clean_file, tmp_path):
+    plates = write_plates(tmp_path)
+    build_scene()
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    # A noisy frame 2 (so its pixel data is most of the file), cut after three quarters:
+    # the header reads, the pixels do not.
+    noise = np.random.default_rng(4).integers(0, 256, (32, 64, 3), dtype=np.uint8)
+    buf = oiio.ImageBuf(oiio.ImageSpec(64, 32, 3, "uint8"))
+    buf.set_pixels(oiio.ROI(), noise)
+    assert buf.write(str(plates[1]))
+    data = plates[1].read_bytes()
+    plates[1].write_bytes(data[: len(data) * 3 // 4])
+    out = tmp_path / "out"
+    r = run(blend, "--plate", pattern(plates), "--out", out, "--frames", "1-3", *SMALL)
+    assert r.returncode == 1 and one_line(r) and "frame 2" in r.stderr, r.stderr[-2000:]
+    report = json.loads((out / "shot.report.json").read_text())
+    assert not report["complete"]
+    failed = [e for e in report["frames"] if e["status"] == "failed"]
+    assert [e["frame"] for e in failed] == [2] and str(plates[1]) in failed[0]["error"]
+    assert not (out / "shot.0002.exr").exists()
+
+
+# 9: a sequence whose frames differ in size is refused up front.
+def test_frames_of_different_sizes_are_refused(clean_file, tmp_path):
+    plates = write_plates(tmp_path)
+    write_plates(tmp_path / "big", size=(96, 48))
+    (tmp_path / "big" / "plate.0002.png").replace(plates[1])
+    build_scene()
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "out"
+    r = run(blend, "--plate", pattern(plates), "--out", out, "--frames", "1-3", *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert "96x48" in r.stderr and "64x32" in r.stderr
+    assert not out.exists()
+
+
+# 8: an EXR plate whose data window is not its display window is not misread.
+def test_windowed_exr_plate_is_refused(shot, tmp_path):
+    blend, _ = shot
+    spec = oiio.ImageSpec(32, 32, 3, "half")
+    spec.x, spec.full_x, spec.full_y, spec.full_width, spec.full_height = 16, 0, 0, 64, 32
+    plate = tmp_path / "windowed.exr"
+    o = oiio.ImageOutput.create(str(plate))
+    o.open(str(plate), spec)
+    o.write_image(np.ones((32, 32, 3), np.float16))
+    o.close()
+    r = run(blend, "--plate", plate, "--out", tmp_path / "out", *SMALL)
+    assert r.returncode == 2 and one_line(r) and "data window" in r.stderr, r.stderr[-2000:]
+
+
+# 11: options whose values would fail later are refused first (more: test_batch_options.py).
+def test_render_under_one_pixel_is_refused(shot, tmp_path):
+    blend, plates = shot
+    r = run(blend, "--plate", plates[0], "--out", tmp_path / "out", "--scale", 1)
+    assert r.returncode == 2 and one_line(r) and "pixel" in r.stderr, r.stderr[-2000:]
+
+
+# 12: memory: refused up front when the plate cannot fit.
+def test_plate_larger_than_memory_is_refused(shot, tmp_path):
+    blend, _ = shot
+    spec = oiio.ImageSpec(1, 1, 3, "half")
+    spec.full_width, spec.full_height = 20000, 15000
+    plate = tmp_path / "big.exr"
+    o = oiio.ImageOutput.create(str(plate))
+    o.open(str(plate), spec)
+    o.write_image(np.ones((1, 1, 3), np.float16))
+    o.close()
+    r = run(blend, "--plate", plate, "--out", tmp_path / "out", *SMALL, address_space=6 << 30)
+    assert r.returncode == 1 and one_line(r) and "memory" in r.stderr, r.stderr[-2000:]
+
+
+# 13: Ctrl-C and SIGTERM: one line, 130 / 143, no temporary file left.
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupted_batch_is_one_line(shot, tmp_path, sig, code):
+    blend, plates = shot
+    out = tmp_path / "out"
+    proc = start(
+        blend,
+        "--plate",
+        pattern(plates),
+        "--out",
+        out,
+        "--frames",
+        "1-3",
+        *SMALL,
+        "--scale",
+        800,
+        "--samples",
+        32,
+    )
+    deadline = time.time() + 120
+    while not (out.exists() and any(p.name.endswith(".lock") for p in out.iterdir())):
+        assert time.time() < deadline and proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    time.sleep(0.3)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err[-2000:]
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err[-2000:]
+    assert [n for n in hidden(out) if not n.endswith(".lock")] == []
+
+
+# 5 (bpy module): an exception nothing expects is one line and a non-zero code.
+def test_unexpected_exception_exits_non_zero(shot, tmp_path, monkeypatch, capsys):
+    sys.path.insert(0, str(ROOT))
+    try:
+        import render_shot
+    finally:
+        sys.path.remove(str(ROOT))
+
+    def broken(*_args):
+        raise TypeError("something nobody expected")
+
+    monkeypatch.setattr(render_shot, "run", broken)
+    blend, plates = shot
+    code = render_shot.main([str(blend), "--plate", str(plates[0]), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.strip().splitlines() == [
+        "render_shot: error: internal error: TypeError: something nobody expected"
+    ]

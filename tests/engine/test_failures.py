@@ -1,0 +1,269 @@
+"""The engine CLI under the failures of issue 14 (docs/failures.md): a full disk, plate ==
+output, suns beyond half floats, EXR windows, bad options, memory limits, signals, damaged
+plates. Full disk: a file-size limit (RLIMIT_FSIZE) in the child, which makes every write
+past it fail as ENOSPC would; memory: an address-space limit (RLIMIT_AS)."""
+
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from virtual_reflections import cli, imagefiles
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+PAPER = ("--method", "paper")
+BBOX = ("--bbox", 60, 30, 100, 60)
+
+
+def run(*args, fsize=None, address_space=None, timeout=120):
+    def limits():
+        if fsize is not None:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a failed write, not a dead process
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+        if address_space is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (address_space, address_space))
+
+    return subprocess.run(
+        [sys.executable, "-m", "virtual_reflections", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        preexec_fn=limits,
+    )
+
+
+def one_line(r):
+    lines = r.stderr.strip().splitlines()
+    return len(lines) == 1 and "Traceback" not in r.stderr
+
+
+def write(path, pixels, fmt="uint8", spec=None):
+    h, w, c = pixels.shape
+    spec = spec or oiio.ImageSpec(w, h, c, fmt)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec) and out.write_image(np.ascontiguousarray(pixels))
+    out.close()
+    return path
+
+
+@pytest.fixture(scope="module")
+def plate(tmp_path_factory):
+    """A noisy 160x90 plate (noise: its maps do not compress to nothing)."""
+    rng = np.random.default_rng(1)
+    path = tmp_path_factory.mktemp("plates") / "plate.png"
+    return write(path, rng.integers(0, 256, (90, 160, 3), dtype=np.uint8))
+
+
+def hidden(folder):
+    return [p.name for p in folder.iterdir() if p.name.startswith(".")]
+
+
+# 1, 14: a full disk never replaces a good file, never passes as success, is one line.
+@pytest.mark.parametrize(
+    "command,ext",
+    [
+        ("envmap", "png"),
+        ("envmap", "exr"),
+        ("envmap", "jpg"),
+        ("envmap", "tif"),
+        ("segment", "png"),
+    ],
+)
+def test_full_disk_keeps_the_previous_file(plate, tmp_path, command, ext):
+    out = tmp_path / f"map.{ext}"
+    args = (command, plate, "-o", out, *BBOX, *PAPER, "--width", 1024)[
+        : 9 if command == "segment" else 11
+    ]
+    first = run(*args)
+    assert first.returncode == 0, first.stderr
+    good = out.read_bytes()
+    r = run(*args, fsize=20_000)
+    assert r.returncode == 1, (r.returncode, r.stdout, r.stderr)
+    assert one_line(r), r.stderr
+    assert "wrote" not in r.stdout
+    assert out.read_bytes() == good
+    assert hidden(tmp_path) == []
+
+
+# 3: the plate is never overwritten by the map.
+def test_plate_as_output_is_refused(plate, tmp_path):
+    copy = tmp_path / "plate.png"
+    copy.write_bytes(plate.read_bytes())
+    for command in ("envmap", "segment"):
+        r = run(command, copy, "-o", tmp_path / "." / "plate.png", *BBOX, *PAPER)
+        assert r.returncode == 2 and one_line(r) and "plate itself" in r.stderr, r.stderr
+        assert copy.read_bytes() == plate.read_bytes()
+
+
+# 7: a sun brighter than half floats can hold stays finite in the default half-float map.
+def test_half_float_map_is_finite_for_a_sun(tmp_path):
+    pixels = np.full((90, 160, 3), 0.5, np.float32)
+    pixels[5:15, 5:15] = 1e6  # a sun, in the outer ring
+    plate = write(tmp_path / "sun.exr", pixels, "float")
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *BBOX, *PAPER, "--width", 256)
+    assert r.returncode == 0, r.stderr
+    assert "clamped" in r.stdout
+    env = oiio.ImageBuf(str(tmp_path / "m.exr")).get_pixels(oiio.FLOAT)
+    assert np.isfinite(env).all() and env.max() == 65504.0
+    r = run("envmap", plate, "-o", tmp_path / "f.exr", *BBOX, *PAPER, "--width", 256, "--float")
+    assert oiio.ImageBuf(str(tmp_path / "f.exr")).get_pixels(oiio.FLOAT).max() > 1e5
+
+
+# 8: the plate is the display window.
+def test_exr_data_window_is_placed_in_the_display_window(tmp_path):
+    rng = np.random.default_rng(2)
+    full = rng.random((90, 160, 3), dtype=np.float32)
+    full[:, :40] = 0.0  # what the data window leaves out is black
+    whole = write(tmp_path / "whole.exr", full, "float")
+    spec = oiio.ImageSpec(120, 90, 3, "float")
+    spec.x, spec.full_x, spec.full_y, spec.full_width, spec.full_height = 40, 0, 0, 160, 90
+    windowed = write(tmp_path / "windowed.exr", np.ascontiguousarray(full[:, 40:]), spec=spec)
+    a = imagefiles.read_plate(str(whole)).pixels
+    b = imagefiles.read_plate(str(windowed)).pixels
+    assert b.shape == (90, 160, 3)
+    np.testing.assert_array_equal(a, b)
+
+
+# 11: every option checked up front, one line, exit 2.
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ("--width", 0),
+        ("--width", 100000),
+        ("--width", -8),
+        ("--bbox", "nan", 1, 5, 5),
+        ("--bbox", 1, 1, "inf", 5),
+    ],
+)
+def test_bad_options_are_one_line(plate, tmp_path, extra):
+    bbox = () if extra[0] == "--bbox" else BBOX
+    started = time.perf_counter()
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *bbox, *PAPER, *extra)
+    assert r.returncode == 2 and one_line(r), r.stderr
+    assert time.perf_counter() - started < 20 and list(tmp_path.iterdir()) == []
+
+
+def test_negative_bbox_in_exponent_notation(plate, tmp_path):
+    # 14: "-1e2" is a number, not an unknown option.
+    r = run(
+        "envmap",
+        plate,
+        "-o",
+        tmp_path / "m.exr",
+        "--bbox",
+        "-1e2",
+        "-1e1",
+        100,
+        60,
+        *PAPER,
+        "--width",
+        64,
+    )
+    assert r.returncode == 0, r.stderr
+
+
+# 12: a job that cannot fit is refused at once; running out anyway is one line, exit 1.
+def test_a_job_larger_than_memory_is_refused_up_front(tmp_path):
+    # A valid 300-megapixel plate: its display window is 20000x15000, one stored pixel.
+    spec = oiio.ImageSpec(1, 1, 3, "half")
+    spec.full_width, spec.full_height, spec.x, spec.y = 20000, 15000, 5, 5
+    big = write(tmp_path / "big.exr", np.ones((1, 1, 3), np.float16), spec=spec)
+    started = time.perf_counter()
+    r = run(
+        "envmap",
+        big,
+        "-o",
+        tmp_path / "m.exr",
+        "--bbox",
+        9000,
+        7000,
+        11000,
+        8000,
+        *PAPER,
+        address_space=3 << 30,
+    )
+    assert r.returncode == 1 and one_line(r), r.stderr
+    assert "memory" in r.stderr and "20000x15000" in r.stderr
+    assert time.perf_counter() - started < 20
+    assert [p.name for p in tmp_path.iterdir()] == ["big.exr"]
+
+
+def test_out_of_memory_is_one_line_exit_1(plate, tmp_path, monkeypatch, capsys):
+    def no_memory(*_args, **_kwargs):
+        raise MemoryError()
+
+    monkeypatch.setattr("virtual_reflections.envmap.apply_table", no_memory)
+    code = cli.main(["envmap", str(plate), "-o", str(tmp_path / "m.exr"), *map(str, BBOX), *PAPER])
+    err = capsys.readouterr().err
+    assert code == 1 and len(err.strip().splitlines()) == 1 and "memory" in err
+
+
+# 13: SIGTERM and SIGKILL leave nothing behind.
+def test_sigterm_is_one_line_and_leaves_no_temp(plate, tmp_path, monkeypatch, capsys):
+    """SIGTERM arrives while the map is being written (the writer signals its own process)."""
+    write_oiio = imagefiles._write_oiio  # noqa: SLF001 - the test wraps the writer
+
+    def write_then_terminated(path, *args):
+        write_oiio(path, *args)
+        assert os.path.exists(path)  # the temporary file, half the job done
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler raises here
+
+    monkeypatch.setattr(imagefiles, "_write_oiio", write_then_terminated)
+    code = cli.main(
+        [
+            "envmap",
+            str(plate),
+            "-o",
+            str(tmp_path / "m.png"),
+            *map(str, BBOX),
+            *PAPER,
+            "--width",
+            "64",
+        ]
+    )
+    assert code == 143
+    assert capsys.readouterr().err.strip() == "virtual_reflections: terminated"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_killed_writers_temp_file_is_removed_by_the_next_write(plate, tmp_path):
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    ).stdout.strip()
+    stale = tmp_path / f".m.{dead}.tmp.png"
+    stale.write_bytes(b"half a png")
+    r = run("envmap", plate, "-o", tmp_path / "m.png", *BBOX, *PAPER, "--width", 64)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.png"]
+
+
+# 14: damaged and odd plates are refused with one line.
+def test_truncated_plate_is_refused(plate, tmp_path):
+    rng = np.random.default_rng(3)
+    jpeg = write(tmp_path / "p.jpg", rng.integers(0, 256, (90, 160, 3), dtype=np.uint8))
+    data = jpeg.read_bytes()
+    jpeg.write_bytes(data[: len(data) // 2])
+    png = tmp_path / "p.png"
+    png.write_bytes(plate.read_bytes()[: plate.stat().st_size // 2])
+    for damaged in (jpeg, png):
+        r = run("envmap", damaged, "-o", tmp_path / "m.exr", *BBOX, *PAPER)
+        assert r.returncode == 2 and one_line(r), r.stderr
+        assert not (tmp_path / "m.exr").exists()
+
+
+def test_folder_and_depth_only_plates_are_named(tmp_path):
+    r = run("envmap", tmp_path, "-o", tmp_path / "m.exr", *BBOX, *PAPER)
+    assert r.returncode == 2 and one_line(r) and "is a folder" in r.stderr, r.stderr
+    spec = oiio.ImageSpec(160, 90, 1, "float")
+    spec.channelnames = ("Z",)
+    depth = write(tmp_path / "depth.exr", np.ones((90, 160, 1), np.float32), spec=spec)
+    r = run("envmap", depth, "-o", tmp_path / "m.exr", *BBOX, *PAPER)
+    assert r.returncode == 2 and one_line(r) and "no colour channels" in r.stderr, r.stderr
