@@ -57,9 +57,9 @@ class Params:
                the ground method: the fill of unseen directions is then by elevation above the
                world's horizon rather than by the camera's own elevation.
     sky_gain:  with `up`: how many times brighter than the whole plate the sky is taken to be
-               where the plate shows none above the horizon (camera_view.sky_share); 3, from
-               the ratio of the upper to the lower hemisphere's log-average luminance in six
-               of Blender's HDRIs (docs/scenes3d.md).
+               where the plate shows none above the horizon (camera_view.sky_share). 2.3: the
+               median over six of Blender's HDRIs of the gain that best predicts their upper
+               hemisphere, in display values, from their lower one (docs/ground.md).
     """
 
     enlarge: float = 0.075
@@ -78,7 +78,7 @@ class Params:
     fill_energy: float = 0.5
     ground: tuple | None = None
     up: tuple | None = None
-    sky_gain: float = 3.0
+    sky_gain: float = 2.3
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
