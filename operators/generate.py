@@ -87,6 +87,7 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
                     continue
                 obj.virtual_reflections.bounds = boxes[obj]
                 report.done.append(obj.name)
+        remove_orphans()
         return report
 
     for i, (obj, box) in enumerate(boxes.items()):
@@ -109,7 +110,18 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         report.done.append(obj.name)
         if progress:
             progress(len(objects) + i + 1)
+    remove_orphans()
     return report
+
+
+def remove_orphans() -> int:
+    """Delete the maps no object reflects any more (an object renamed, then generated again,
+    leaves its old map; a deleted object leaves its map packed in the .blend)."""
+    in_use = {shading.map_of(o) for o in bpy.data.objects}
+    stale = maps.orphans(in_use)
+    for image in stale:
+        bpy.data.images.remove(image)
+    return len(stale)
 
 
 def remove_all() -> int:
@@ -129,6 +141,10 @@ def remove_all() -> int:
 
 
 def anything_attached():
-    return any(shading.is_attached(o) for o in bpy.data.objects) or any(
-        s.get(shading.WORLD_RECORD) is not None for s in bpy.data.scenes
+    """Anything Remove would take away: a reflection on an object or a world, or a map of the
+    add-on's left behind by a deleted object."""
+    return (
+        any(shading.is_attached(o) for o in bpy.data.objects)
+        or any(s.get(shading.WORLD_RECORD) is not None for s in bpy.data.scenes)
+        or bool(maps.orphans({shading.map_of(o) for o in bpy.data.objects}))
     )

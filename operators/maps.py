@@ -8,6 +8,7 @@ packing encodes an EXR, so it happens once per save, not once per regeneration),
 EXR files into `maps_folder`.
 """
 
+import hashlib
 import os
 
 import bpy
@@ -24,9 +25,20 @@ WORLD_MAP = "VR World Map"  # the map shared by the objects in World mode (no ob
 _versions = {}  # image name -> how often its pixels were written this session (previews.py)
 
 
+NAME_BYTES = 63  # Blender cuts longer datablock names (4.5; 5.x allows more)
+
+
 def map_name(object_name: str) -> str:
-    """The name of an object's own map."""
-    return f"{MAP_PREFIX}{object_name}"
+    """The name of an object's own map: "VR Map <object>", or, when that would not fit in
+    NAME_BYTES, the object's name cut and a hash of the whole name (so a long name gets the
+    same map every time, and two long names that start alike get two)."""
+    name = f"{MAP_PREFIX}{object_name}"
+    if len(name.encode()) <= NAME_BYTES:
+        return name
+    tag = "~" + hashlib.sha1(object_name.encode()).hexdigest()[:8]
+    room = NAME_BYTES - len(MAP_PREFIX.encode()) - len(tag)
+    cut = object_name.encode()[:room].decode(errors="ignore")
+    return f"{MAP_PREFIX}{cut}{tag}"
 
 
 def touch(image):
@@ -120,6 +132,12 @@ def pack_pending():
 @bpy.app.handlers.persistent
 def _pack_before_save(*_args):
     pack_pending()
+
+
+def orphans(in_use) -> list:
+    """The add-on's maps that no object reflects any more (its object was deleted or renamed
+    and generated again), given the images ``in_use``."""
+    return [i for i in bpy.data.images if images.created(i) == KIND and i not in in_use]
 
 
 def remove_maps():

@@ -296,3 +296,52 @@ def test_a_new_plate_under_an_old_name_is_read_again(addon):
     image.pixels.foreach_get(rgb)
     mean = rgb.reshape(-1, 4)[:, :3].mean(0)
     assert mean[1] > 0.5 and mean[1] > 2 * max(mean[0], mean[2]), mean  # green, not red/blue
+
+
+# --- map images never leak into the file (issue 14, case 15) ---------------------------------
+
+
+def _maps():
+    return sorted(i.name for i in bpy.data.images if i.get("vr_created") == "map")
+
+
+def test_a_name_at_the_length_limit_gets_one_map(addon):
+    from vr_addon_under_test.operators import generate
+
+    scene = make_scene()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    ball = add_sphere("B" * 63)  # Blender's longest name: "VR Map " + it would be cut
+    for _ in range(3):
+        report = generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [ball])
+        assert report.done == [ball.name], report.warnings
+    assert len(_maps()) == 1 and len(_maps()[0].encode()) <= 63
+
+
+def test_renaming_an_object_leaves_no_old_map(addon):
+    from vr_addon_under_test.operators import generate
+
+    scene = make_scene()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    ball = add_sphere("Ball")
+    generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [ball])
+    assert _maps() == ["VR Map Ball"]
+    ball.name = "Renamed"
+    generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [ball])
+    assert _maps() == ["VR Map Renamed"]
+
+
+def test_a_deleted_objects_map_can_be_removed(addon):
+    from vr_addon_under_test.operators import generate
+
+    scene = make_scene()
+    scene.virtual_reflections.plate_image = red_blue_plate()
+    ball, other = add_sphere("Ball"), add_sphere("Other", location=(2, 0, 0))
+    generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [ball])
+    bpy.data.objects.remove(ball)
+    generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [other])
+    assert _maps() == ["VR Map Other"]  # Generate clears the map no object reflects
+    bpy.data.objects.remove(other)
+    assert _maps() == ["VR Map Other"]  # kept (packed at the next save) until ...
+    assert generate.anything_attached()  # ... Remove, which is offered
+    assert bpy.ops.vr.remove() == {"FINISHED"}
+    assert _maps() == []
