@@ -27,6 +27,17 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+def _positive(text) -> int:
+    """A whole number >= 1 (argparse type: a bad one is a one-line usage error)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="python -m study",
@@ -34,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     p = sub.add_parser("bench", help="time table building and applying against py360convert")
-    p.add_argument("--repeat", type=int, default=15, help="runs per figure (median)")
+    p.add_argument("--repeat", type=_positive, default=15, help="runs per figure (median)")
     p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
     p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
     p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
