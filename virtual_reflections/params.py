@@ -78,7 +78,7 @@ class Params:
     fill_energy: float = 0.5
     ground: tuple | None = None
     up: tuple | None = None
-    sky_gain: float = 2.3
+    sky_gain: float = 1.6
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
