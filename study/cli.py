@@ -2,10 +2,13 @@
 
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
+    python -m study scenes [--quick] [--out DIR] [--jobs 1]
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
 (docs/accuracy.md); `bench` times the engine's lookup tables against py360convert
-(docs/benchmarks.md). Bad input prints one line on stderr and exits with code 2.
+(docs/benchmarks.md); `scenes` renders 3D scenes in Cycles with the bpy module and scores every
+method against the path-traced truth (docs/scenes3d.md). Bad input prints one line on stderr
+and exits with code 2.
 """
 
 from __future__ import annotations
@@ -57,6 +60,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
+    p = sub.add_parser("scenes", help="3D scenes path-traced in Cycles (docs/scenes3d.md)")
+    p.add_argument("--quick", action="store_true", help="two scenes, small: print the means")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write DIR/scenes3d.json, the tables of DIR/scenes3d.md and "
+        "DIR/images/scenes3d_*.png (default: docs; with --quick nothing unless given)",
+    )
+    p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     return parser
 
 
@@ -69,6 +81,14 @@ def main(argv=None) -> int:
             try:
                 run_command(quick=args.quick, out=args.out, hdris=args.hdri, jobs=args.jobs)
             except StudyInputError as exc:
+                raise UsageError(str(exc)) from exc
+        elif args.command == "scenes":
+            from .scenes3d import ScenesInputError
+            from .scenes3d import run_command as run_scenes
+
+            try:
+                run_scenes(quick=args.quick, out=args.out, jobs=args.jobs)
+            except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
         else:
             from .bench import run_bench, run_sweep

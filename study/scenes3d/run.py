@@ -1,0 +1,253 @@
+"""Render and score the 3D scenes (bpy, Cycles on the CPU), one process, bpy imported once.
+
+Per scene: the plate (the scene without the subject: float EXR and 8-bit sRGB PNG), the truth
+(the subject in the full scene as a mirror and as a rough glossy at two roughnesses), and each
+method's render of the subject alone (ground and neighbours hidden from render) over the plate:
+the add-on's methods (read from operators/choices.py METHOD_ITEMS at run time; Generate on the
+8-bit plate, Auto resolution, combine Replace for the mirror and World for the rough subjects)
+and three worlds around the subject's own material (the true HDRI at infinity: an on-set
+probe; the plate stretched over the sphere; the plate's mean colour). Metrics on the subject's
+pixels (study/evaluate/metrics.py): PSNR and SSIM of display values, si-RMSE of linear values
+clipped at white.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import pathlib
+import time
+
+import bpy
+import numpy as np
+from bpy_extras.object_utils import world_to_camera_view
+from mathutils import Vector
+
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
+
+from ..evaluate.metrics import psnr, si_rmse, ssim, to_display
+from . import build
+from .scenes import Scene3D
+
+# (name, roughness, the add-on's combine mode for it)
+MATERIALS = (
+    ("mirror", 0.0, "REPLACE"),
+    ("rough 0.15", 0.15, "WORLD"),
+    ("rough 0.35", 0.35, "WORLD"),
+)
+PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
+BASELINES = (PROBE, STRETCHED, MEAN)
+METRICS = ("psnr", "ssim", "si_rmse")
+
+
+class Addon:
+    """The add-on registered for the run (build_scenes.addon: this checkout as a package, or
+    the copy already imported); `close` unregisters it if this run registered it (bpy 4.5
+    hangs at exit otherwise)."""
+
+    def __init__(self):
+        self.module, self.registered = build.build_scenes().addon()
+        self.generate = importlib.import_module(f"{self.module.__name__}.operators.generate")
+        choices = importlib.import_module(f"{self.module.__name__}.operators.choices")
+        self.methods = [(item[0], item[1]) for item in choices.METHOD_ITEMS]
+
+    def close(self):
+        if self.registered:
+            self.module.unregister()
+            self.registered = False
+
+
+def new_file():
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    return bpy.context.scene
+
+
+def render(scene, path, border=None) -> np.ndarray:
+    """Render the scene to a float RGBA EXR at ``path``; (H, W, 4) premultiplied linear."""
+    r = scene.render
+    r.filepath = str(path)
+    r.use_file_extension = False
+    settings = r.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_mode = "RGBA"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    r.use_border = border is not None
+    if border is not None:
+        r.use_crop_to_border = False
+        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = border
+    bpy.ops.render.render(write_still=True)
+    return read_rgba(str(path))
+
+
+def subject_border(scene, camera, subject, margin=0.04):
+    """The subject's screen box (fractions, y up) from its bounding box's corners, widened."""
+    corners = [subject.matrix_world @ Vector(c) for c in subject.bound_box]
+    uv = np.array([tuple(world_to_camera_view(scene, camera, c))[:2] for c in corners])
+    lo = np.clip(uv.min(0) - margin, 0.0, 1.0)
+    hi = np.clip(uv.max(0) + margin, 0.0, 1.0)
+    return (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
+
+
+def border_pixels(border, width, height):
+    """(y0, y1, x0, x1) rows top first, one pixel inside the border on each side."""
+    x0, x1, y0, y1 = border
+    return (
+        math.floor((1 - y1) * height) + 1,
+        math.ceil((1 - y0) * height) - 1,
+        math.floor(x0 * width) + 1,
+        math.ceil(x1 * width) - 1,
+    )
+
+
+def write_png(path, linear):
+    """8-bit sRGB PNG of scene-linear RGB (clipped), as a photograph would be delivered."""
+    import OpenImageIO as oiio
+
+    codes = np.round(to_display(linear) * 255.0).astype(np.uint8)
+    out = oiio.ImageOutput.create(str(path))
+    spec = oiio.ImageSpec(codes.shape[1], codes.shape[0], 3, "uint8")
+    if not (out.open(str(path), spec) and out.write_image(codes) and out.close()):
+        raise OSError(f"cannot write {path}")
+
+
+def score(pred_linear, truth_linear, mask, crop) -> dict:
+    y0, y1, x0, x1 = crop
+    p, t, m = pred_linear[y0:y1, x0:x1], truth_linear[y0:y1, x0:x1], mask[y0:y1, x0:x1]
+    pd, td = to_display(p), to_display(t)
+    return {
+        "psnr": psnr(pd, td, m),
+        "ssim": ssim(pd, td, m),
+        "si_rmse": si_rmse(np.clip(p, 0, 1), np.clip(t, 0, 1), m),
+    }
+
+
+def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, samples: int, log):
+    """One scene: renders, Generate per method, scores. Returns (record, mirror crops)."""
+    started = time.perf_counter()
+    new_file()
+    scene, camera, subject, others, dome, material = build.build(spec, width, samples)
+    height = scene.render.resolution_y
+    work.mkdir(parents=True, exist_ok=True)
+    renders = 0
+
+    def shot(name, border=None):
+        nonlocal renders
+        renders += 1
+        return render(scene, work / f"{name}.exr", border)
+
+    # (a) the plate
+    subject.hide_render = True
+    scene.render.film_transparent = False
+    plate = shot("plate")[..., :3]
+    write_png(work / "plate.png", plate)
+    subject.hide_render = False
+    border = subject_border(scene, camera, subject)
+    crop = border_pixels(border, width, height)
+
+    # (b) the truth, the subject in the full scene
+    truth = {}
+    for name, roughness, _ in MATERIALS:
+        build.set_roughness(material, roughness)
+        truth[name] = shot(f"truth {name}", border)[..., :3]
+
+    # (c) the subject alone over the plate
+    for obj in others:
+        obj.hide_render = True
+    scene.render.film_transparent = True
+    plate_image = bpy.data.images.load(str(work / "plate.png"))
+    plate8 = srgb_to_linear(read_rgba(str(work / "plate.png"))[..., :3])
+    worlds = {
+        PROBE: dome,
+        STRETCHED: build.stretched_world(plate_image, spec),
+        MEAN: build.mean_world(plate8.reshape(-1, 3).mean(0)),
+    }
+    alone = {name: {} for name, _, _ in MATERIALS}
+    for name, roughness, _ in MATERIALS:
+        build.set_roughness(material, roughness)
+        for baseline, world in worlds.items():
+            scene.world = world
+            alone[name][baseline] = shot(f"{baseline} {name}", border)
+    scene.world = dome
+    build.set_roughness(material, 0.0)
+
+    settings = scene.virtual_reflections
+    settings.plate_image = plate_image
+    settings.resolution = "AUTO"
+    subject.virtual_reflections.enabled = True
+    times, warnings = {}, {}
+    for ident, label in addon.methods:
+        settings.method = ident
+        times[label] = {}
+        for combine in ("REPLACE", "WORLD"):
+            settings.combine = combine
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            t0 = time.perf_counter()
+            report = addon.generate.generate(scene, depsgraph, [subject])
+            times[label][combine] = time.perf_counter() - t0
+            if report.warnings:
+                warnings.setdefault(label, []).extend(report.warnings)
+            if not report.done:
+                raise RuntimeError(
+                    f"{spec.name}: Generate ({label}) made nothing: {report.warnings}"
+                )
+            for name, roughness, mode in MATERIALS:
+                if mode != combine:
+                    continue
+                build.set_roughness(material, roughness)
+                alone[name][label] = shot(f"{ident} {name}", border)
+            addon.generate.remove_all()
+            build.set_roughness(material, 0.0)
+
+    # scores on the subject's pixels
+    mask = alone["mirror"][PROBE][..., 3] > 0.5
+    results, crops = {}, {}
+    for name, _, _ in MATERIALS:
+        results[name] = {}
+        for method, rgba in alone[name].items():
+            composite = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+            results[name][method] = score(composite, truth[name], mask, crop)
+            if name == "mirror":
+                y0, y1, x0, x1 = crop
+                crops[method] = to_display(composite[y0:y1, x0:x1])
+        results[name]["(plate itself)"] = score(plate, truth[name], mask, crop)
+    y0, y1, x0, x1 = crop
+    crops["Truth"] = to_display(truth["mirror"][y0:y1, x0:x1])
+    finite = {label: bool(np.isfinite(alone["mirror"][label]).all()) for _, label in addon.methods}
+    record = {
+        "scene": spec.to_json(),
+        "subject_pixels": int(mask.sum()),
+        "results": results,
+        "generate_s": times,
+        "finite": finite,
+        "warnings": warnings,
+        "renders": renders,
+        "seconds": time.perf_counter() - started,
+        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
+    }
+    mirror = results["mirror"]
+    log(
+        f"{spec.name}: {mask.sum()} px, mirror PSNR "
+        + ", ".join(f"{m} {v['psnr']:.1f}" for m, v in mirror.items())
+        + f" ({record['seconds']:.0f} s, {renders} renders)"
+    )
+    return record, crops
+
+
+def run_scenes(specs, work, width, samples, log):
+    """Every scene in turn; the add-on is registered once and unregistered at the end."""
+    addon = Addon()
+    records, crops = [], {}
+    try:
+        for spec in specs:
+            record, scene_crops = run_scene(
+                spec, addon, pathlib.Path(work) / spec.name, width, samples, log
+            )
+            records.append(record)
+            crops[spec.name] = scene_crops
+        methods = [label for _, label in addon.methods]
+    finally:
+        new_file()
+        addon.close()
+    return records, crops, methods

@@ -1,0 +1,195 @@
+"""The 3D scenes as plain descriptions, drawn from seeds (no bpy): camera, subject, ground,
+neighbours, dome. `build.py` turns one into a Blender scene.
+
+World frame: Blender's, +Z up, the ground is z = 0, the camera stands above the origin and looks
+along +Y, tilted down by `pitch_deg`. Lengths in metres, angles in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+# Six of Blender's eight bundled HDRIs make the scenes; two are held out for later checks.
+HDRIS = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
+HELD_OUT = ("forest", "night")
+SHAPES = ("sphere", "torus", "suzanne", "car")
+GROUNDS = ("checker", "brick", "noise")
+SEEDS = tuple(range(101, 117))  # the full set: 16 scenes
+QUICK_SEEDS = (101, 103)  # the quick subset (a sphere and Suzanne, two HDRIs)
+
+SENSOR_MM = 36.0
+ASPECT = 16 / 9  # render width / height
+
+
+@dataclass
+class Neighbour:
+    """A box standing on the ground: where (centre of its base), how big, which way, colour."""
+
+    role: str  # "beside", "behind" (the subject) or "behind camera"
+    x: float
+    y: float
+    size: tuple  # (width, depth, height)
+    yaw_deg: float
+    colour: tuple
+
+
+@dataclass
+class Scene3D:
+    seed: int
+    index: int
+    hdri: str
+    hdri_rotation_deg: float
+    camera_height: float
+    pitch_deg: float  # downward tilt
+    lens_mm: float
+    shape: str
+    size: float  # the subject's largest dimension
+    distance: float  # ground distance from the camera to the subject's centre
+    azimuth_deg: float  # the subject's bearing from the view direction (+ to the right)
+    subject_yaw_deg: float
+    ground: str
+    ground_scale: float  # texture repeats per metre
+    ground_colours: tuple
+    neighbours: list = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return f"s{self.seed}_{self.shape}_{self.hdri}"
+
+    @property
+    def subject_xy(self) -> tuple:
+        a = math.radians(self.azimuth_deg)
+        return (self.distance * math.sin(a), self.distance * math.cos(a))
+
+    def hfov_deg(self) -> float:
+        return math.degrees(2 * math.atan(SENSOR_MM / 2 / self.lens_mm))
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["name"] = self.name
+        d["hfov_deg"] = round(self.hfov_deg(), 2)
+        return d
+
+
+def _colour(rng, saturation=(0.35, 0.9), value=(0.25, 0.85)) -> tuple:
+    h = rng.uniform()
+    s, v = rng.uniform(*saturation), rng.uniform(*value)
+    i = int(h * 6) % 6
+    f = h * 6 - int(h * 6)
+    p, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
+    rgb = [(v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q)][i]
+    return tuple(round(c**2.2, 4) for c in rgb)  # linear
+
+
+def _project(cam_h, pitch, half_w, half_h, point):
+    """(u, v, depth) of a world point on the frame, u, v in [-1, 1] inside it (v up)."""
+    x, y, z = point
+    c, s = math.cos(math.radians(pitch)), math.sin(math.radians(pitch))
+    depth = y * c - (z - cam_h) * s  # along the view direction (0, cos, -sin)
+    up = y * s + (z - cam_h) * c  # along the camera's up (0, sin, cos)
+    return x / depth / half_w, up / depth / half_h, depth
+
+
+def _fits(cam_h, pitch, lens, size, distance, azimuth, centre_height) -> bool:
+    """The subject's bounding sphere lies inside the frame (a margin kept) and spans 12-50 %
+    of the frame's height."""
+    half_w = SENSOR_MM / 2 / lens
+    half_h = half_w / ASPECT
+    a = math.radians(azimuth)
+    centre = (distance * math.sin(a), distance * math.cos(a), centre_height)
+    u, v, depth = _project(cam_h, pitch, half_w, half_h, centre)
+    if depth <= 1.0:
+        return False
+    radius = size / 2 / depth  # angular radius, in tangent units
+    span = 2 * radius / (2 * half_h)
+    ru, rv = radius / half_w, radius / half_h
+    return 0.12 <= span <= 0.5 and abs(u) + ru < 0.9 and abs(v) + rv < 0.9
+
+
+def centre_height(shape: str, size: float) -> float:
+    """Height of the subject's bounding-sphere centre above the ground (build.py's shapes)."""
+    return {"sphere": 0.5, "torus": 0.5, "suzanne": 0.4, "car": 0.17}[shape] * size
+
+
+def make_scene(seed: int, index: int) -> Scene3D:
+    rng = np.random.default_rng(seed)
+    hdri = HDRIS[index % len(HDRIS)]
+    shape = SHAPES[index % len(SHAPES)]
+    for _ in range(10000):
+        cam_h = rng.uniform(1.4, 1.8)
+        lens = float(np.exp(rng.uniform(math.log(24), math.log(85))))
+        distance = rng.uniform(3.0, 10.0)
+        size = rng.uniform(0.3, 1.5)
+        half_w = math.degrees(math.atan(SENSOR_MM / 2 / lens))
+        azimuth = rng.uniform(-0.45, 0.45) * half_w
+        # tilt so the subject sits in the lower-middle part of the frame, within 2-15 degrees
+        below = math.degrees(math.atan2(cam_h - centre_height(shape, size), distance))
+        pitch = float(np.clip(below - rng.uniform(-0.1, 0.35) * half_w / ASPECT, 2.0, 15.0))
+        if _fits(cam_h, pitch, lens, size, distance, azimuth, centre_height(shape, size)):
+            break
+    else:  # pragma: no cover - the ranges above always leave room
+        raise RuntimeError(f"no camera fits seed {seed}")
+    scene = Scene3D(
+        seed=seed,
+        index=index,
+        hdri=hdri,
+        hdri_rotation_deg=round(rng.uniform(0, 360), 1),
+        camera_height=round(cam_h, 3),
+        pitch_deg=round(pitch, 2),
+        lens_mm=round(lens, 1),
+        shape=shape,
+        size=round(size, 3),
+        distance=round(distance, 3),
+        azimuth_deg=round(azimuth, 2),
+        subject_yaw_deg=round(rng.uniform(-60, 60), 1),
+        ground=GROUNDS[int(rng.integers(len(GROUNDS)))],
+        ground_scale=round(rng.uniform(0.6, 2.0), 2),
+        ground_colours=(_colour(rng, value=(0.35, 0.85)), _colour(rng, value=(0.1, 0.5))),
+    )
+    sx, sy = scene.subject_xy
+    side = 1.0 if rng.uniform() < 0.5 else -1.0
+    # beside the subject, never nearer the camera (so nothing hides it)
+    w = rng.uniform(0.3, 1.0)
+    scene.neighbours.append(
+        Neighbour(
+            "beside",
+            round(sx + side * (size / 2 + w / 2 + rng.uniform(0.3, 1.2)), 3),
+            round(sy + rng.uniform(0.2, 1.5), 3),
+            (round(w, 3), round(rng.uniform(0.3, 1.0), 3), round(rng.uniform(0.4, 1.6), 3)),
+            round(rng.uniform(0, 90), 1),
+            _colour(rng),
+        )
+    )
+    scene.neighbours.append(
+        Neighbour(
+            "behind",
+            round(sx - side * rng.uniform(0.0, 1.5), 3),
+            round(sy + size / 2 + rng.uniform(1.5, 4.0), 3),
+            (
+                round(rng.uniform(1.0, 3.0), 3),
+                round(rng.uniform(0.3, 1.0), 3),
+                round(rng.uniform(1.2, 2.8), 3),
+            ),
+            round(rng.uniform(-30, 30), 1),
+            _colour(rng),
+        )
+    )
+    scene.neighbours.append(  # a wall behind the camera: only a reflection shows it
+        Neighbour(
+            "behind camera",
+            round(rng.uniform(-1.5, 1.5), 3),
+            round(-rng.uniform(2.0, 5.0), 3),
+            (round(rng.uniform(2.0, 4.0), 3), 0.3, round(rng.uniform(1.8, 3.0), 3)),
+            round(rng.uniform(-20, 20), 1),
+            _colour(rng),
+        )
+    )
+    return scene
+
+
+def scene_set(quick: bool = False) -> list:
+    seeds = QUICK_SEEDS if quick else SEEDS
+    return [make_scene(seed, SEEDS.index(seed)) for seed in seeds]

@@ -1,0 +1,122 @@
+"""The 3D ground truth (`python -m study scenes`), its quick subset run through the bpy module:
+the truth is not the plate, the harness ranks a known-better world above a known-worse one,
+every add-on method renders something finite, and the outputs hold every method and metric.
+About a minute on two cores (bpy 4.5); skipped only when bpy cannot be imported."""
+
+import ast
+import importlib.util
+import json
+import math
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from study.scenes3d import QUICK, scenes
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def method_labels():
+    """The add-on's methods as operators/choices.py lists them (read without bpy)."""
+    tree = ast.parse((ROOT / "operators" / "choices.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(
+            getattr(t, "id", None) == "METHOD_ITEMS" for t in node.targets
+        ):
+            return [ast.literal_eval(item)[1] for item in node.value.elts]
+    raise AssertionError("no METHOD_ITEMS in operators/choices.py")
+
+
+def test_scene_descriptions_are_deterministic_and_in_range():
+    full = scenes.scene_set()
+    assert len(full) == 16 and [s.to_json() for s in full] == [
+        s.to_json() for s in scenes.scene_set()
+    ]
+    assert {s.hdri for s in full} == set(scenes.HDRIS)
+    assert not {s.hdri for s in full} & set(scenes.HELD_OUT)
+    assert {s.shape for s in full} == set(scenes.SHAPES)
+    for s in full:
+        assert 1.4 <= s.camera_height <= 1.8 and 2 <= s.pitch_deg <= 15
+        assert 24 <= s.lens_mm <= 85 and 3 <= s.distance <= 10 and 0.3 <= s.size <= 1.5
+        assert {n.role for n in s.neighbours} == {"beside", "behind", "behind camera"}
+        behind_camera = next(n for n in s.neighbours if n.role == "behind camera")
+        assert behind_camera.y < 0  # the camera looks along +Y from y = 0
+    assert 2 <= len(QUICK.specs()) <= 3
+
+
+def test_the_command_rejects_more_jobs_in_one_line():
+    r = subprocess.run(
+        [sys.executable, "-m", "study", "scenes", "--quick", "--jobs", "2"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    pytest.importorskip("bpy", reason="the 3D study renders with the bpy module")
+    from study.scenes3d import run_command
+
+    out = tmp_path_factory.mktemp("scenes3d")
+    data, crops = run_command(quick=True, out=out, log=lambda line: None)
+    return data, crops, out
+
+
+def test_the_truth_differs_from_the_plate_on_the_subject(quick_run):
+    data, _, _ = quick_run
+    for record in data["scenes"]:
+        assert record["subject_pixels"] > 200, record["scene"]["name"]
+        for material, scores in record["results"].items():
+            plate = scores["(plate itself)"]
+            assert plate["psnr"] < 25.0 and plate["si_rmse"] > 0.1, (material, plate)
+
+
+def test_an_on_set_probe_beats_the_plate_mean_on_the_mirror(quick_run):
+    """A sanity check of the harness: the true HDRI at infinity (what a chrome ball captures)
+    must look more like the path-traced mirror than a flat world of the plate's mean."""
+    data, _, _ = quick_run
+    for record in data["scenes"]:
+        mirror = record["results"]["mirror"]
+        assert mirror["On-set probe"]["psnr"] > mirror["Plate mean"]["psnr"], record["scene"]
+        assert mirror["On-set probe"]["ssim"] > mirror["Plate mean"]["ssim"] + 0.1
+
+
+def test_every_addon_method_renders_something_finite(quick_run):
+    data, crops, _ = quick_run
+    labels = method_labels()
+    assert data["addon_methods"] == labels
+    for record in data["scenes"]:
+        for label in labels:
+            assert record["finite"][label], (record["scene"]["name"], label)
+            assert record["generate_s"][label]["REPLACE"] > 0
+            for material, scores in record["results"].items():
+                got, plate = scores[label], scores["(plate itself)"]
+                assert all(math.isfinite(got[m]) for m in ("psnr", "ssim", "si_rmse"))
+                # an empty render would leave the plate itself on the subject's pixels
+                assert got != plate, (material, label)
+        crop = crops[record["scene"]["name"]]
+        assert set(crop) >= {"Truth", *labels, "Plate mean"}
+
+
+def test_the_outputs_hold_every_method_and_metric(quick_run):
+    data, _, out = quick_run
+    saved = json.loads((out / "scenes3d_quick.json").read_text())
+    methods = [*method_labels(), "On-set probe", "Plate stretched", "Plate mean"]
+    assert len(saved["scenes"]) == len(QUICK.specs())
+    for record in saved["scenes"]:
+        assert set(record["results"]) == {"mirror", "rough 0.15", "rough 0.35"}
+        for scores in record["results"].values():
+            for method in methods:
+                assert set(scores[method]) == {"psnr", "ssim", "si_rmse"}
+        assert set(record["generate_s"]) == set(method_labels())
+        assert {"hdri", "shape", "lens_mm", "distance", "size"} <= set(record["scene"])
+    text = (out / "scenes3d_quick.md").read_text()
+    assert all(f"| {m} | mirror |" in text for m in methods)
+    if importlib.util.find_spec("matplotlib") is not None:  # not in every venv
+        for chart in ("scenes3d_quick_pareto.png", "scenes3d_quick_examples.png"):
+            assert (out / "images" / chart).stat().st_size > 5000
