@@ -3,11 +3,13 @@
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--out DIR] [--jobs 1]
+    python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
 (docs/accuracy.md); `bench` times the engine's lookup tables against py360convert
 (docs/benchmarks.md); `scenes` renders 3D scenes in Cycles with the bpy module and scores every
-method against the path-traced truth (docs/scenes3d.md). Bad input prints one line on stderr
+method against the path-traced truth (docs/scenes3d.md); `sky-prior` derives the ground
+method's sky gain from the HDRIs (docs/ground.md). Bad input prints one line on stderr
 and exits with code 2.
 """
 
@@ -69,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
         "DIR/images/scenes3d_*.png (default: docs; with --quick nothing unless given)",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
+    sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
 
@@ -90,6 +93,10 @@ def main(argv=None) -> int:
                 run_scenes(quick=args.quick, out=args.out, jobs=args.jobs)
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
+        elif args.command == "sky-prior":
+            from .sky_prior import run as run_sky_prior
+
+            run_sky_prior()
         else:
             from .bench import run_bench, run_sweep
 
