@@ -27,16 +27,16 @@ METHOD_ITEMS = (
     (
         "GROUND",
         "Camera View + Ground",
-        "Camera View, and the ground the objects stand on seen from each object: what a "
-        "mirror shows below it comes from where the photo shows that ground (the ground: the "
-        "Ground object, else a shadow catcher, else the objects' lowest point)",
+        "Camera View, and the ground the objects stand on seen from each object: what a mirror "
+        "shows below it comes from where the photo shows that ground (the ground: the Ground "
+        "object, else a shadow catcher, else the objects' lowest point; docs/ground.md)",
     ),
     (
         "CAMERA",
         "Camera View",
-        "Place the plate exactly by the camera's field of view; where the photo saw nothing, "
-        "extend its edges into the sky, ground and sides it suggests (the most accurate on the "
-        "ground truth, docs/accuracy.md)",
+        "Place the plate exactly by the camera's field of view, everything taken as distant; "
+        "where the photo saw nothing, extend its edges into the sky, ground and sides it "
+        "suggests (docs/accuracy.md)",
     ),
     (
         "PAPER",

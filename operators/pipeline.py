@@ -148,25 +148,32 @@ def ground_height(scene, depsgraph, objects) -> float:
     return min(float(bounds.world_box(o, depsgraph)[0][2]) for o in objects)
 
 
-def map_params(view, scene, depsgraph, objects) -> Params:
-    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
-    ground plane seen from the centre of their bounding box (engine ground.py). Falls back to
-    the view's (the distant camera view) when the centre is not above the ground."""
-    settings = scene.virtual_reflections
-    if settings.method != "GROUND" or view.params.method != "camera" or not objects:
-        return view.params
+def objects_centre(depsgraph, objects) -> np.ndarray:
+    """(3,) world-space centre of the bounding box of ``objects`` (evaluated)."""
     boxes = [bounds.world_box(o, depsgraph) for o in objects]
     low = np.min([b[0] for b in boxes], axis=0)
     high = np.max([b[1] for b in boxes], axis=0)
-    centre = 0.5 * (low + high)
+    return 0.5 * (low + high)
+
+
+def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
+    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
+    ground plane seen from the centre of their bounding box (engine ground.py), or from
+    ``centre`` (world space; Update Every Frame passes the centre smoothed over frames). Falls
+    back to the view's (the distant camera view) when the centre is not above the ground."""
+    settings = scene.virtual_reflections
+    if settings.method != "GROUND" or view.params.method != "camera" or not objects:
+        return view.params
+    centre = objects_centre(depsgraph, objects) if centre is None else np.asarray(centre)
     height = float(centre[2]) - ground_height(scene, depsgraph, objects)
     if height < MIN_HEIGHT:
         return view.params
     origin = bounds.to_engine_frame(view.projection, point=centre)
     up = bounds.to_engine_frame(view.projection, vector=(0.0, 0.0, 1.0))
-    # Rounded (1/1000 of the camera's distance, 1e-4 of a unit vector) so that a pose seen
-    # before finds its cached table and sub-millimetre jitter does not rebuild the map.
-    step = 1e-3 * max(float(np.linalg.norm(origin)), 1e-3)
+    # Rounded to the size of a plate pixel at the object's depth (and up to 1e-4), as the
+    # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
+    # jitter that moves the object by less than a pixel does not rebuild the map.
+    step = max(origin[2], 1e-3) / view.params.intrinsics[0]
     ground = tuple(round(v / step) * step for v in (*origin, height))
     up = tuple(round(v, 4) for v in up)
     return dataclasses.replace(view.params, method="ground", ground=ground, up=up)

@@ -49,7 +49,8 @@ from . import maps, pipeline, plate, shading
 
 
 class BoundsFilter:
-    """Exponential smoothing of a box over frames, then rounding to whole plate pixels.
+    """Exponential smoothing of a box over frames, then rounding to whole plate pixels (or,
+    with ``unit`` None, no rounding: the ground method's centre, which map_params rounds).
 
     smoothed = smoothing * previous smoothed + (1 - smoothing) * this frame's box; smoothing 0
     is off, 0.5 averages over ~3 frames, 0.9 over ~19 (and lags a moving object by
@@ -59,7 +60,8 @@ class BoundsFilter:
     below half a pixel leaves it unchanged, and so the cached lookup table is reused.
     """
 
-    def __init__(self):
+    def __init__(self, unit=1.0):
+        self.unit = unit
         self.frame = None
         self.smoothed = None
         self.held = None
@@ -74,7 +76,8 @@ class BoundsFilter:
         else:
             self.smoothed = a * self.smoothed + (1.0 - a) * box
         self.frame = frame
-        self.held = tuple(float(v) for v in np.floor(self.smoothed + 0.5))
+        held = self.smoothed if self.unit is None else np.floor(self.smoothed / self.unit + 0.5)
+        self.held = tuple(float(v) * (self.unit or 1.0) for v in held)
         return self.held
 
 
@@ -142,6 +145,7 @@ def advance(scene, depsgraph, filters, frame=None, step=1, plate_shape=None):
         box = _group_box(view, scene, depsgraph, objs, [])
         if box is not None:
             filters.setdefault(image.name, BoundsFilter())(frame, box, settings.smoothing, step)
+            _smoothed_centre(filters, image.name, depsgraph, objs, frame, settings, step)
 
 
 def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=None):
@@ -181,7 +185,8 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
             held = filters.setdefault(key, BoundsFilter())(frame, raw, settings.smoothing, step)
             result.raw[image.name], result.boxes[image.name] = raw, held
         width = _width(settings, image)
-        shaped = pipeline.map_params(view, scene, depsgraph, objs)
+        centre = _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step)
+        shaped = pipeline.map_params(view, scene, depsgraph, objs, centre)
         built_from = (current.identity, held, shaped, width, image.name_full)
         if _written.get(image.name) == built_from and tuple(image.size) == (width, width // 2):
             result.unchanged.append(image.name)
@@ -192,6 +197,18 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
         _written[image.name] = built_from
         result.maps.append(image.name)
     return result
+
+
+def _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step):
+    """Camera View + Ground: the objects' centre smoothed over frames like their box (so the
+    ground seen from it steadies with the box); None for the other methods."""
+    if settings.method != "GROUND":
+        return None
+    raw = pipeline.objects_centre(depsgraph, objs)
+    # (scene, map, "centre") for the handler's filters: cleared with the scene's on render_init
+    centre_key = (*key, "centre") if isinstance(key, tuple) else (key, "centre")
+    held = filters.setdefault(centre_key, BoundsFilter(unit=None))
+    return held(frame, raw, settings.smoothing, step)
 
 
 def _width(settings, image):

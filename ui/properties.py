@@ -58,7 +58,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         subtype="PERCENTAGE",
     )
     method: EnumProperty(
-        update=_shaping_changed, name="Method", items=METHOD_ITEMS, default="CAMERA"
+        update=_shaping_changed, name="Method", items=METHOD_ITEMS, default="GROUND"
     )
     ground_object: PointerProperty(
         update=_shaping_changed,
