@@ -77,7 +77,7 @@ def stages(reports):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--steps", type=int, default=90)
-    parser.add_argument("--method", choices=("CAMERA", "PAPER"), default="CAMERA")
+    parser.add_argument("--method", choices=("GROUND", "CAMERA", "PAPER"), default="GROUND")
     args = parser.parse_args()
     addon = load_addon()
     try:
