@@ -170,10 +170,10 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
         return view.params
     origin = bounds.to_engine_frame(view.projection, point=centre)
     up = bounds.to_engine_frame(view.projection, vector=(0.0, 0.0, 1.0))
-    # Rounded to the size of a plate pixel at the object's depth (and up to 1e-4), as the
+    # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
     # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
     # jitter that moves the object by less than a pixel does not rebuild the map.
-    step = max(origin[2], 1e-3) / view.params.intrinsics[0]
+    step = 0.25 * max(origin[2], 1e-3) / view.params.intrinsics[0]
     ground = tuple(round(v / step) * step for v in (*origin, height))
     up = tuple(round(v, 4) for v in up)
     return dataclasses.replace(view.params, method="ground", ground=ground, up=up)

@@ -167,3 +167,24 @@ def test_live_update_and_every_frame_follow_the_ground(addon):
     assert update.maps == [image.name], update.warnings
     got = map_colour(image, toward(scene, ball, (-1.5, 1.5, 0.0)))
     np.testing.assert_allclose(got, BLUE, atol=0.1)
+
+
+def test_the_map_changes_smoothly_with_motion(addon):
+    """The ball walks toward the camera in equal steps, so the ground in front of it leaves
+    the plate's bottom edge: the map changes every step, and no step changes it twice as much
+    as its neighbours do (a pop: the ground switched on or off at some pose, a seam jumping;
+    checked: the test fails when the ground is dropped for part of the walk)."""
+    scene, ball = make_shot(red=lambda x, y: np.sin(2.0 * x) + np.cos(1.5 * y) > 0)
+    changes, previous = [], None
+    for y in np.linspace(3.0, -1.5, 19):
+        ball.location.y = y
+        bpy.context.view_layer.update()
+        image = generate(scene, ball)
+        pixels = addon_part("operators.images").read_pixels(image)[..., :3].copy()
+        if previous is not None:
+            changes.append(float(np.abs(pixels - previous).mean()))
+        previous = pixels
+    changes = np.array(changes)
+    assert changes.min() > 0  # it moves every step ...
+    neighbours = 0.5 * (changes[:-2] + changes[2:])
+    assert (changes[1:-1] < 2.0 * neighbours).all(), changes  # ... and no step jumps
