@@ -10,7 +10,7 @@ returns `DEFAULTS`, plain values with the same names, so nothing else needs to c
 """
 
 import bpy
-from bpy.props import EnumProperty
+from bpy.props import EnumProperty, IntProperty
 
 from .operators import maps, shading
 from .operators.choices import (
@@ -21,6 +21,7 @@ from .operators.choices import (
     RESOLUTION_ITEMS,
     addon_preferences,
 )
+from .virtual_reflections import cache
 
 
 class VR_AddonPreferences(bpy.types.AddonPreferences):
@@ -45,6 +46,16 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         description="Where new files keep their maps: packed into the .blend, or saved as EXR "
         "files in the folder below",
     )
+    table_cache_mb: IntProperty(
+        name="Table Cache",
+        default=DEFAULTS.table_cache_mb,
+        min=0,
+        soft_max=8192,
+        subtype="NONE",
+        description="Memory kept for the maps' lookup tables (MB): a moved object or a new "
+        "frame reuses a table it holds; the least recently used go first",
+        update=lambda prefs, _context: _apply_cache_limit(prefs),
+    )
     map_folder: EnumProperty(
         name="Saved Maps",
         items=MAP_FOLDER_ITEMS,
@@ -60,6 +71,7 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         col.prop(self, "combine")
         col.prop(self, "resolution")
         col.prop(self, "map_storage")
+        layout.prop(self, "table_cache_mb")
         col = layout.column()
         col.prop(self, "map_folder")
         try:
@@ -104,6 +116,11 @@ def apply_defaults(scene, prefs=None) -> bool:
     return True
 
 
+def _apply_cache_limit(prefs=None):
+    """The engine's table cache takes the preferred budget (MB)."""
+    cache.set_limit(int((prefs or get()).table_cache_mb) * 2**20)
+
+
 def _migrate(settings):
     """Files saved before map storage was one choice hold the boolean ``save_maps``."""
     if "save_maps" in settings.keys():
@@ -127,6 +144,7 @@ def _apply_to_open_file():
 
 def register():
     bpy.utils.register_class(VR_AddonPreferences)
+    _apply_cache_limit()
     if _on_load_post not in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.append(_on_load_post)
     if not bpy.app.timers.is_registered(_apply_to_open_file):

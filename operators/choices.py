@@ -86,7 +86,7 @@ MAP_FOLDER_ITEMS = (
 
 # What the preferences hold when the add-on is not an enabled extension (tests, scripts).
 DEFAULTS = SimpleNamespace(
-    combine="REPLACE", resolution="AUTO", map_storage="PACK", map_folder="BLEND"
+    combine="REPLACE", resolution="AUTO", map_storage="PACK", map_folder="BLEND", table_cache_mb=512
 )
 DEFAULT_WIDTH = 1024  # Auto without an object to measure
 

@@ -6,6 +6,7 @@ frame, +Z the viewing direction, +Y up, +X the plate's left; lat-long and cube l
 OpenEXR's ImfEnvmap. Colour: scene-linear Rec.709 throughout.
 """
 
+from . import cache
 from .envmap import DEFAULT_SIZE, apply_table, environment_map
 from .params import Params
 from .segmentation import Rect, Segmentation, segment
@@ -18,6 +19,7 @@ __all__ = [
     "Rect",
     "Segmentation",
     "apply_table",
+    "cache",
     "build_table",
     "environment_map",
     "lookup_table",

@@ -22,13 +22,13 @@ block of rows the same gathers read.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import camera_view, ground
+from .cache import bounded
 from .layouts import latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import for_blocks
@@ -421,7 +421,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     )
 
 
-@functools.lru_cache(maxsize=8)  # ~60 MB per 1024 x 512 table
+@bounded  # one budget in bytes for every table (cache.py)
 def lookup_table(
     width: int, height: int, bbox: tuple, params: Params, layout: str = "latlong", size: int = 1024
 ) -> LookupTable:
@@ -439,7 +439,7 @@ def lookup_table(
     return build_table(seg, layout, size, params)
 
 
-@functools.lru_cache(maxsize=4)
+@bounded
 def _camera_table(width: int, height: int, params: Params, layout: str, size: int) -> LookupTable:
     """The camera-view method's table: it reads only the plate's size from the segmentation."""
     centre = (width / 2 - 1, height / 2 - 1, width / 2 + 1, height / 2 + 1)

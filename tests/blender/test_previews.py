@@ -249,3 +249,17 @@ def test_saved_maps_folder(addon, tmp_path, monkeypatch):
     )
     assert report.done == ["Ball"]
     assert [p.name for p in (tmp_path / "vr_maps").iterdir()] == ["VR_Map_Ball.exr"]
+
+
+def test_the_table_cache_follows_the_preference(addon, monkeypatch):
+    """Registering applies the preferred table-cache budget to the engine (MB)."""
+    preferences = addon_part("preferences")
+    cache = addon_part("virtual_reflections.cache")
+    monkeypatch.setattr(preferences.DEFAULTS, "table_cache_mb", 7)
+    preferences._apply_cache_limit()
+    try:
+        assert cache.limit() == 7 * 2**20
+    finally:
+        monkeypatch.setattr(preferences.DEFAULTS, "table_cache_mb", 512)
+        preferences._apply_cache_limit()
+    assert cache.limit() == 512 * 2**20
