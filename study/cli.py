@@ -2,7 +2,7 @@
 
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
-    python -m study scenes [--quick] [--out DIR] [--jobs 1]
+    python -m study scenes [--quick] [--cases failures] [--out DIR] [--jobs 1]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -70,6 +70,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="write DIR/scenes3d.json, the tables of DIR/scenes3d.md and "
         "DIR/images/scenes3d_*.png (default: docs; with --quick nothing unless given)",
     )
+    p.add_argument(
+        "--cases",
+        choices=("default", "failures"),
+        default="default",
+        help="failures: the failure cases instead (floating, looking up, wall, border, large, "
+        "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md",
+    )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
@@ -90,7 +97,7 @@ def main(argv=None) -> int:
             from .scenes3d import run_command as run_scenes
 
             try:
-                run_scenes(quick=args.quick, out=args.out, jobs=args.jobs)
+                run_scenes(quick=args.quick, out=args.out, jobs=args.jobs, cases=args.cases)
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
         elif args.command == "sky-prior":

@@ -7,7 +7,8 @@ roughnesses), and every method's render of the subject alone composited over the
 - `run`: renders, Generate per add-on method, scores on the subject's pixels (bpy);
 - `report`: summaries, the tables of docs/scenes3d.md, the charts (no bpy).
 
-`python -m study scenes [--quick] [--out DIR] [--jobs 1]` runs it (`run_command`). Research
+`python -m study scenes [--quick] [--cases failures] [--out DIR] [--jobs 1]` runs it
+(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5). Research
 only: bpy is imported when a run starts (once per process); the product never imports this.
 """
 
@@ -34,18 +35,35 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
+CASES = ("default", "failures")
+
+
 @dataclass(frozen=True)
 class Config:
     quick: bool = False
     width: int = 320  # x 180
     samples: int = 32
+    cases: str = "default"  # or "failures": scenes.failure_set, with the ground-chosen row
 
     def specs(self):
+        if self.cases == "failures":
+            return scenes.failure_set(self.quick)
         return scenes.scene_set(self.quick)
+
+    @property
+    def name(self) -> str:
+        """The outputs' stem: scenes3d, scenes3d_quick, scenes3d_failures(_quick)."""
+        return (
+            "scenes3d"
+            + ("_failures" if self.cases == "failures" else "")
+            + ("_quick" if self.quick else "")
+        )
 
 
 FULL = Config()
 QUICK = Config(quick=True, width=256, samples=16)
+FAILURES = Config(cases="failures")
+QUICK_FAILURES = Config(quick=True, width=160, samples=8, cases="failures")
 
 
 def _json_safe(value):
@@ -72,14 +90,19 @@ def run_study(config: Config, log=None, keep=None):
     work = pathlib.Path(keep) if keep else pathlib.Path(tempfile.mkdtemp(prefix="vr_scenes3d_"))
     started = time.perf_counter()
     try:
-        records, crops, methods = run.run_scenes(specs, work, config.width, config.samples, say)
+        records, crops, methods = run.run_scenes(
+            specs, work, config.width, config.samples, say, config.cases == "failures"
+        )
     finally:
         if not keep:
             shutil.rmtree(work, ignore_errors=True)
     import bpy
 
+    failures = config.cases == "failures"
     data = {
-        "command": COMMAND + (" --quick" if config.quick else ""),
+        "command": COMMAND
+        + (" --quick" if config.quick else "")
+        + (" --cases failures" if failures else ""),
         "quick": config.quick,
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
         "samples": config.samples,
@@ -98,18 +121,32 @@ def run_study(config: Config, log=None, keep=None):
         },
         "seconds": time.perf_counter() - started,
     }
+    if failures:
+        data["cases"] = "failures"
+        data["default_method"] = (
+            methods[0]
+            if run.GROUND_CHOSEN not in methods
+            else (methods[methods.index(run.GROUND_CHOSEN) - 1])
+        )
     return data, crops
 
 
-def run_command(quick=False, out=None, jobs=1, log=None):
+def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
-    the tables of OUT/scenes3d.md and OUT/images/scenes3d_{pareto,examples}.png."""
+    the tables of OUT/scenes3d.md and OUT/images/scenes3d_{pareto,examples}.png. With
+    ``cases="failures"``: the failure cases, written to OUT/scenes3d_failures.json, the
+    "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png."""
     if jobs != 1:
         raise ScenesInputError(
             "--jobs: only 1 is supported (one bpy per process; Cycles already uses every core)"
         )
-    config = QUICK if quick else FULL
+    if cases not in CASES:
+        raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
+    if cases == "failures":
+        config = QUICK_FAILURES if quick else FAILURES
+    else:
+        config = QUICK if quick else FULL
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
         try:
@@ -119,22 +156,25 @@ def run_command(quick=False, out=None, jobs=1, log=None):
     data, crops = run_study(config, log=log)
     from . import report
 
-    print(report.table_means(data))
+    print(report.table_failures(data) if config.cases == "failures" else report.table_means(data))
     print(
         f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s on {data['machine']['cores']} "
         f"cores (bpy {data['machine']['bpy']})"
     )
     if target is not None:
-        write_outputs(data, crops, target)
+        write_outputs(data, crops, target, config.name)
     return data, crops
 
 
-def write_outputs(data, crops, target) -> None:
+def write_outputs(data, crops, target, name=None) -> None:
     from . import report
 
     target = pathlib.Path(target)
     (target / "images").mkdir(parents=True, exist_ok=True)
-    name = "scenes3d_quick" if data["quick"] else "scenes3d"
+    name = name or ("scenes3d_quick" if data["quick"] else "scenes3d")
+    if data.get("cases") == "failures":
+        write_failures(data, crops, target, name)
+        return
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
     if importlib.util.find_spec("matplotlib") is None:
         print("matplotlib is not installed: no charts", file=sys.stderr)
@@ -150,5 +190,26 @@ def write_outputs(data, crops, target) -> None:
     print(
         f"wrote {target / (name + '.json')}, {target / (name + '.md')} and the charts in "
         f"{target / 'images'}",
+        file=sys.stderr,
+    )
+
+
+def write_failures(data, crops, target, name) -> None:
+    """OUT/NAME.json, the contact sheet of every case, and the "Where it fails" block of
+    OUT/scenes3d(_quick).md (appended under its heading when the file lacks it)."""
+    from . import report
+
+    (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
+    if importlib.util.find_spec("matplotlib") is None:
+        print("matplotlib is not installed: no charts", file=sys.stderr)
+    else:
+        report.contact_sheet(
+            data, crops, target / "images" / f"{name}_examples.png", names=list(crops)
+        )
+        report.chart_failures(data, target / "images" / f"{name}.png")
+    md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
+    report.add_failures_block(md, report.table_failures(data), data["command"])
+    print(
+        f"wrote {target / (name + '.json')}, {md} and the charts in {target / 'images'}",
         file=sys.stderr,
     )

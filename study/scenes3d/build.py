@@ -194,7 +194,7 @@ def make_subject(scene, spec: Scene3D, material):
     if not obj.data.materials:
         obj.data.materials.append(material)
     sx, sy = spec.subject_xy
-    obj.location = (sx, sy, 0.0)
+    obj.location = (sx, sy, spec.lift)
     obj.rotation_euler = (0.0, 0.0, math.radians(spec.subject_yaw_deg))
     return obj
 

@@ -39,6 +39,7 @@ MATERIALS = (
 PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
 BASELINES = (PROBE, STRETCHED, MEAN)
 METRICS = ("psnr", "ssim", "si_rmse")
+GROUND_CHOSEN = "Camera View + Ground (ground chosen)"
 
 
 class Addon:
@@ -123,8 +124,18 @@ def score(pred_linear, truth_linear, mask, crop) -> dict:
     }
 
 
-def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, samples: int, log):
-    """One scene: renders, Generate per method, scores. Returns (record, mirror crops)."""
+def run_scene(
+    spec: Scene3D,
+    addon: Addon,
+    work: pathlib.Path,
+    width: int,
+    samples: int,
+    log,
+    ground_chosen: bool = False,
+):
+    """One scene: renders, Generate per method, scores. Returns (record, mirror crops).
+    ``ground_chosen``: also Camera View + Ground with the ground plane chosen as the scene's
+    Ground object (the method row GROUND_CHOSEN)."""
     started = time.perf_counter()
     new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -177,8 +188,12 @@ def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, sampl
     settings.resolution = "AUTO"
     subject.virtual_reflections.enabled = True
     times, warnings = {}, {}
-    for ident, label in addon.methods:
+    methods = list(addon.methods)
+    if ground_chosen:  # the ground plane picked as the Ground object (the failure cases)
+        methods.append(("GROUND", GROUND_CHOSEN))
+    for ident, label in methods:
         settings.method = ident
+        settings.ground_object = others[0] if label == GROUND_CHOSEN else None
         times[label] = {}
         for combine in ("REPLACE", "WORLD"):
             settings.combine = combine
@@ -199,6 +214,7 @@ def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, sampl
                 alone[name][label] = shot(f"{ident} {name}", border)
             addon.generate.remove_all()
             build.set_roughness(material, 0.0)
+    settings.ground_object = None
 
     # scores on the subject's pixels
     mask = alone["mirror"][PROBE][..., 3] > 0.5
@@ -214,7 +230,7 @@ def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, sampl
         results[name]["(plate itself)"] = score(plate, truth[name], mask, crop)
     y0, y1, x0, x1 = crop
     crops["Truth"] = to_display(truth["mirror"][y0:y1, x0:x1])
-    finite = {label: bool(np.isfinite(alone["mirror"][label]).all()) for _, label in addon.methods}
+    finite = {label: bool(np.isfinite(alone["mirror"][label]).all()) for _, label in methods}
     record = {
         "scene": spec.to_json(),
         "subject_pixels": int(mask.sum()),
@@ -235,18 +251,27 @@ def run_scene(spec: Scene3D, addon: Addon, work: pathlib.Path, width: int, sampl
     return record, crops
 
 
-def run_scenes(specs, work, width, samples, log):
-    """Every scene in turn; the add-on is registered once and unregistered at the end."""
+def default_method_label(addon: Addon) -> str:
+    """The label of the add-on's default method (the Scene setting's default)."""
+    ident = bpy.context.scene.virtual_reflections.bl_rna.properties["method"].default
+    return dict(addon.methods)[ident]
+
+
+def run_scenes(specs, work, width, samples, log, ground_chosen=False):
+    """Every scene in turn; the add-on is registered once and unregistered at the end.
+    ``ground_chosen``: add the GROUND_CHOSEN method row (after the add-on's default)."""
     addon = Addon()
     records, crops = [], {}
     try:
         for spec in specs:
             record, scene_crops = run_scene(
-                spec, addon, pathlib.Path(work) / spec.name, width, samples, log
+                spec, addon, pathlib.Path(work) / spec.name, width, samples, log, ground_chosen
             )
             records.append(record)
             crops[spec.name] = scene_crops
         methods = [label for _, label in addon.methods]
+        if ground_chosen:
+            methods.insert(1 + methods.index(default_method_label(addon)), GROUND_CHOSEN)
     finally:
         new_file()
         addon.close()

@@ -8,7 +8,7 @@ along +Y, tilted down by `pitch_deg`. Lengths in metres, angles in degrees.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -54,9 +54,14 @@ class Scene3D:
     ground_scale: float  # texture repeats per metre
     ground_colours: tuple
     neighbours: list = field(default_factory=list)
+    # the failure cases only (defaults leave the ordinary scenes, and their JSON, unchanged)
+    lift: float = 0.0  # the subject's lowest point above the ground (floating, or on a pedestal)
+    case: str = ""  # the failure case's name
 
     @property
     def name(self) -> str:
+        if self.case:
+            return f"{self.case}_{self.shape}_{self.hdri}"
         return f"s{self.seed}_{self.shape}_{self.hdri}"
 
     @property
@@ -69,6 +74,9 @@ class Scene3D:
 
     def to_json(self) -> dict:
         d = asdict(self)
+        for key in ("lift", "case"):  # absent from the ordinary scenes' records
+            if not d[key]:
+                del d[key]
         d["name"] = self.name
         d["hfov_deg"] = round(self.hfov_deg(), 2)
         return d
@@ -193,3 +201,105 @@ def make_scene(seed: int, index: int) -> Scene3D:
 def scene_set(quick: bool = False) -> list:
     seeds = QUICK_SEEDS if quick else SEEDS
     return [make_scene(seed, SEEDS.index(seed)) for seed in seeds]
+
+
+# --- failure cases (issue 11, item 5) -----------------------------------------------------------
+
+FAILURE_BASE = (105, 4)  # s105_sphere_sunrise: 48 mm, 7.3 m, a 0.64 m sphere, 8.4 degrees down
+QUICK_FAILURES = ("f1_floating",)
+
+
+def frame_extent(spec: Scene3D) -> tuple:
+    """(u, v, span, reach) of the subject's bounding sphere on the frame: centre (u, v in
+    [-1, 1], v up), its diameter as a share of the frame's height, and max(|u| + ru, |v| + rv)
+    (under 1: inside the frame)."""
+    half_w = SENSOR_MM / 2 / spec.lens_mm
+    half_h = half_w / ASPECT
+    centre = (*spec.subject_xy, spec.lift + centre_height(spec.shape, spec.size))
+    u, v, depth = _project(spec.camera_height, spec.pitch_deg, half_w, half_h, centre)
+    radius = spec.size / 2 / depth
+    ru, rv = radius / half_w, radius / half_h
+    return u, v, radius / half_h, max(abs(u) + ru, abs(v) + rv)
+
+
+def _pedestal(spec: Scene3D, width: float) -> Neighbour:
+    sx, sy = spec.subject_xy
+    return Neighbour(
+        "pedestal", round(sx, 3), round(sy, 3), (width, width, spec.lift), 0.0, (0.35, 0.35, 0.33)
+    )
+
+
+def _variant(base: Scene3D, case: str, **changes) -> Scene3D:
+    """``base`` with ``changes``; the neighbours near the subject (beside, behind) follow it:
+    moved by the subject's displacement and pushed out by half its growth."""
+    spec = replace(base, case=case, neighbours=[], **changes)
+    (bx, by), (sx, sy) = base.subject_xy, spec.subject_xy
+    grow = max(0.0, (spec.size - base.size) / 2)
+    for n in base.neighbours:
+        if n.role == "behind camera":
+            spec.neighbours.append(n)
+            continue
+        x, y = n.x + sx - bx, n.y + sy - by
+        if n.role == "beside":
+            x += math.copysign(grow, n.x - bx)
+        y += grow
+        spec.neighbours.append(replace(n, x=round(x, 3), y=round(y, 3)))
+    return spec
+
+
+def _aim(spec: Scene3D) -> float:
+    """The pitch (degrees down) that puts the subject's centre at the frame's middle row."""
+    drop = spec.camera_height - spec.lift - centre_height(spec.shape, spec.size)
+    return round(math.degrees(math.atan2(drop, spec.distance)), 2)
+
+
+def failure_set(quick: bool = False) -> list:
+    """Six variations of one ordinary scene (s105), each a way the add-on's model can fail:
+    floating subject, camera looking up, a plate of only a wall, the subject at the frame's
+    border, covering most of the plate, tiny."""
+    base = make_scene(*FAILURE_BASE)
+    cases = []
+    # (1) floating 0.75 m above the ground: the add-on takes the subject's lowest point as
+    # the ground unless a Ground object is chosen
+    cases.append(_variant(base, "f1_floating", lift=0.75))
+    # (2) looking up 15 degrees at a sphere on a 2.5 m column: no ground in the plate
+    up = _variant(
+        base,
+        "f2_looking_up",
+        lift=2.5,
+        distance=5.0,
+        size=0.6,
+        lens_mm=50.0,
+        pitch_deg=-15.0,
+        azimuth_deg=0.0,
+    )
+    up.neighbours.append(_pedestal(up, 0.4))
+    cases.append(up)
+    # (3) a wall 2 m in front of the camera fills the plate; the sphere on a pedestal before it
+    wall = _variant(
+        base, "f3_wall", lift=1.2, distance=1.4, size=0.35, lens_mm=40.0, azimuth_deg=0.0
+    )
+    wall.pitch_deg = _aim(wall)
+    wall.neighbours = [n for n in wall.neighbours if n.role == "behind camera"]
+    wall.neighbours.append(
+        Neighbour("wall ahead", 0.0, 2.15, (8.0, 0.3, 4.0), 0.0, (0.45, 0.32, 0.22))
+    )
+    wall.neighbours.append(_pedestal(wall, 0.3))
+    cases.append(wall)
+    # (4) at the frame's right border (its bounding sphere touching it)
+    border = _variant(base, "f4_border", azimuth_deg=base.azimuth_deg)
+    half_w = math.degrees(math.atan(SENSOR_MM / 2 / base.lens_mm))
+    for k in range(200):
+        border.azimuth_deg = round(half_w * k / 200, 2)
+        if frame_extent(border)[3] > 0.97:
+            break
+    cases.append(_variant(base, "f4_border", azimuth_deg=border.azimuth_deg))
+    # (5) a 2.2 m sphere 3.3 m away: most of the plate
+    large = _variant(base, "f5_large", size=2.2, distance=3.3, lens_mm=35.0, azimuth_deg=0.0)
+    large.pitch_deg = _aim(large)
+    cases.append(large)
+    # (6) a 0.15 m sphere 8 m away: a few percent of the frame's height
+    cases.append(_variant(base, "f6_tiny", size=0.15, distance=8.0))
+    if quick:
+        cases = [c for c in cases if c.case in QUICK_FAILURES]
+    return cases

@@ -1,7 +1,8 @@
 """The 3D ground truth (`python -m study scenes`), its quick subset run through the bpy module:
 the truth is not the plate, the harness ranks a known-better world above a known-worse one,
-every add-on method renders something finite, and the outputs hold every method and metric.
-About a minute on two cores (bpy 4.5); skipped only when bpy cannot be imported."""
+every add-on method renders something finite, and the outputs hold every method and metric;
+one failure case (`--cases failures --quick`) scores every method finitely. About 80 s on two
+cores (bpy 4.5); skipped only when bpy cannot be imported."""
 
 import ast
 import importlib.util
@@ -120,3 +121,43 @@ def test_the_outputs_hold_every_method_and_metric(quick_run):
     if importlib.util.find_spec("matplotlib") is not None:  # not in every venv
         for chart in ("scenes3d_quick_pareto.png", "scenes3d_quick_examples.png"):
             assert (out / "images" / chart).stat().st_size > 5000
+
+
+def test_failure_cases_are_variations_that_leave_the_scenes_alone():
+    """`--cases failures` (issue 11, item 5): six cases from one ordinary scene; the 16
+    scenes' descriptions carry none of the new fields."""
+    assert all("lift" not in s.to_json() and "case" not in s.to_json() for s in scenes.scene_set())
+    cases = scenes.failure_set()
+    assert [c.case[:2] for c in cases] == ["f1", "f2", "f3", "f4", "f5", "f6"]
+    assert [c.to_json() for c in cases] == [c.to_json() for c in scenes.failure_set()]
+    extent = {c.case[:2]: scenes.frame_extent(c) for c in cases}
+    for key in ("f1", "f2", "f3", "f4", "f6"):
+        assert extent[key][3] < 1.0, key  # the subject inside the frame
+    assert extent["f4"][3] > 0.95 and extent["f5"][2] > 1.0 and extent["f6"][2] < 0.06
+    up = cases[1]
+    half_v = math.degrees(math.atan(scenes.SENSOR_MM / 2 / up.lens_mm / scenes.ASPECT))
+    assert -up.pitch_deg > half_v  # the frame's bottom row looks above the horizon: no ground
+    assert cases[0].lift >= 0.5 and not any(n.role == "pedestal" for n in cases[0].neighbours)
+
+
+def test_a_failure_case_scores_every_method_finitely(tmp_path):
+    """The floating case, small: every method, the ground-chosen row included, renders and
+    scores finitely; the outputs hold it (about 30 s)."""
+    pytest.importorskip("bpy", reason="the 3D study renders with the bpy module")
+    from study.scenes3d import run_command
+
+    data, _ = run_command(quick=True, out=tmp_path, cases="failures", log=lambda line: None)
+    labels = method_labels()
+    assert (
+        len(data["scenes"]) == 1 and "Camera View + Ground (ground chosen)" in data["addon_methods"]
+    )
+    assert set(labels) < set(data["addon_methods"])
+    for record in data["scenes"]:
+        for label in data["addon_methods"]:
+            assert record["finite"][label], label
+            for scores in record["results"].values():
+                assert all(math.isfinite(scores[label][m]) for m in ("psnr", "ssim", "si_rmse"))
+    assert json.loads((tmp_path / "scenes3d_failures_quick.json").read_text())["cases"] == (
+        "failures"
+    )
+    assert "<!-- scenes3d:failures -->\n| case |" in (tmp_path / "scenes3d_quick.md").read_text()
