@@ -160,13 +160,18 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
     ground plane seen from the centre of their bounding box (engine ground.py), or from
     ``centre`` (world space; Update Every Frame passes the centre smoothed over frames). Falls
-    back to the view's (the distant camera view) when the centre is not above the ground."""
+    back to the view's (the distant camera view) when the centre is not above the ground or
+    the ground is not below the camera."""
     settings = scene.virtual_reflections
     if settings.method != "GROUND" or view.params.method != "camera" or not objects:
         return view.params
     centre = objects_centre(depsgraph, objects) if centre is None else np.asarray(centre)
-    height = float(centre[2]) - ground_height(scene, depsgraph, objects)
-    if height < MIN_HEIGHT:
+    floor = ground_height(scene, depsgraph, objects)
+    height = float(centre[2]) - floor
+    camera_z = float(np.linalg.inv(view.projection.world_to_camera)[2, 3])
+    if height < MIN_HEIGHT or camera_z <= floor + MIN_HEIGHT:
+        # Not above the ground, or a "ground" at or above the camera (the objects stand on a
+        # column or a table above it): no ground the plate could show; the distant view.
         return view.params
     origin = bounds.to_engine_frame(view.projection, point=centre)
     up = bounds.to_engine_frame(view.projection, vector=(0.0, 0.0, 1.0))

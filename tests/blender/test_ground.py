@@ -188,3 +188,15 @@ def test_the_map_changes_smoothly_with_motion(addon):
     assert changes.min() > 0  # it moves every step ...
     neighbours = 0.5 * (changes[:-2] + changes[2:])
     assert (changes[1:-1] < 2.0 * neighbours).all(), changes  # ... and no step jumps
+
+
+def test_a_ground_above_the_camera_falls_back_to_camera_view(addon):
+    """The ball on a column whose top is above the camera: its lowest point is no ground the
+    plate could show, so the map is Camera View's."""
+    scene, ball = make_shot()
+    ball.location.z = 2.5  # lowest point 2.0 m, the camera at 1.6 m
+    bpy.context.view_layer.update()
+    ground = addon_part("operators.images").read_pixels(generate(scene, ball)).copy()
+    scene.virtual_reflections.method = "CAMERA"
+    camera = addon_part("operators.images").read_pixels(generate(scene, ball))
+    np.testing.assert_array_equal(ground, camera)
