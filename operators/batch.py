@@ -270,16 +270,25 @@ def _not_a_plate(outputs, plates):
                 )
 
 
+def _render_rgba(scene, temp):
+    """Render the scene into the EXR ``temp`` and read it back: ((h, w, 4) float32 RGBA,
+    seconds of the render call). Blender's own error lines are held back (the tool says it);
+    a signal received during the render is raised once it returns."""
+    scene.render.filepath = temp
+    with held_stderr():
+        started = time.perf_counter()
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+        seconds = time.perf_counter() - started
+        _raise_if_signalled()
+        return read_rgba(temp), seconds
+
+
 def _render_to(scene, path):
     """Render the scene into ``path`` (an RGBA float EXR) through a temporary file, read back
     and renamed; Blender's own error lines are dropped when it fails (the tool says it)."""
     temp = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
-    scene.render.filepath = temp
     try:
-        with held_stderr():
-            bpy.ops.render.render(write_still=True, scene=scene.name)
-            _raise_if_signalled()
-            rgba = read_rgba(temp)
+        rgba, _ = _render_rgba(scene, temp)
         commit(temp, path, rgba.shape[1], rgba.shape[0])
     except ImageError as exc:
         raise BatchError(str(exc).replace(temp, path)) from exc
@@ -826,14 +835,10 @@ class FrameJob:
                 summary = "no reflections"
             t = time.perf_counter()
             render_path = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
-            scene.render.filepath = render_path
             try:
-                with held_stderr():
-                    bpy.ops.render.render(write_still=True, scene=scene.name)
-                    _raise_if_signalled()
-                    timed("render", t)
-                    t = time.perf_counter()
-                    rgba = read_rgba(render_path)
+                rgba, seconds = _render_rgba(scene, render_path)
+                times["render"] = round(seconds, 4)
+                t = time.perf_counter()
             except ImageError as exc:  # Blender could not write it whole (a full disk)
                 raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
             finally:

@@ -235,7 +235,8 @@ def _mesh_object(scene, name, vertices, faces, *, smooth=True):
     return obj
 
 
-def _bmesh_object(scene, name, bm):
+def bmesh_object(scene, name, bm):
+    """A mesh object from a bmesh (freed), linked into ``scene``."""
     mesh = bpy.data.meshes.new(name)
     bm.to_mesh(mesh)
     bm.free()
@@ -335,7 +336,7 @@ def make_sphere(scene, name, radius):
     bmesh.ops.translate(bm, verts=bm.verts, vec=(0.0, 0.0, radius))  # stands on z = 0
     for face in bm.faces:
         face.smooth = True
-    return _bmesh_object(scene, name, bm)
+    return bmesh_object(scene, name, bm)
 
 
 def make_cube(scene, name, size):
@@ -353,7 +354,7 @@ def make_cube(scene, name, size):
     bmesh.ops.translate(bm, verts=bm.verts, vec=(0.0, 0.0, size / 2))
     for face in bm.faces:  # smooth only the rounded edges
         face.smooth = face.calc_area() < 0.5 * size * size
-    return _bmesh_object(scene, name, bm)
+    return bmesh_object(scene, name, bm)
 
 
 def make_teapot(scene, name, height):
@@ -455,7 +456,7 @@ def make_car(scene, name, materials):
             y = side * (width / 2 - 0.08)
             _cylinder_y(bm, 0.33, 0.24, Vector((x, y, 0.33)), tyre)
             _cylinder_y(bm, 0.19, 0.03, Vector((x, y + side * 0.12, 0.33)), chrome, 24)
-    obj = _bmesh_object(scene, name, bm)
+    obj = bmesh_object(scene, name, bm)
     for material in materials:
         obj.data.materials.append(material)
     return obj

@@ -113,13 +113,7 @@ def stretched_world(plate_image, spec: Scene3D):
 
 
 def _object(scene, name, bm):
-    mesh = bpy.data.meshes.new(name)
-    bm.to_mesh(mesh)
-    bm.free()
-    mesh.update()
-    obj = bpy.data.objects.new(name, mesh)
-    scene.collection.objects.link(obj)
-    return obj
+    return build_scenes().bmesh_object(scene, name, bm)
 
 
 def _box(scene, name, size):
