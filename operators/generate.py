@@ -99,8 +99,11 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):
+            ground = pipeline.ground_lookup(view, scene, depsgraph, [obj], image)
             try:
-                shading.attach(obj, image_map, settings.combine, settings.strength, settings.ior)
+                shading.attach(
+                    obj, image_map, settings.combine, settings.strength, settings.ior, ground
+                )
             except ValueError as exc:  # raised before anything changed (e.g. linked materials)
                 report.warnings.append(str(exc))
                 if not shading.is_attached(obj):
