@@ -349,8 +349,10 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
             if mat is not None:
                 _check_local(mat, f"material {mat.name!r} on {obj.name!r}")
 
+    old_group = None
     if is_attached(obj):
-        detach(obj)
+        old_group = obj[RECORD].get("group")
+        detach(obj, tidy=False)  # its groups may serve again: tidied below
 
     added_slot = not obj.material_slots
     if added_slot:
@@ -374,11 +376,13 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
         "copies": list(copies.values()),
         "group": group,
     }
+    _remove_unused_groups(old_group)
 
 
-def detach(obj):
+def detach(obj, tidy=True):
     """Undo `attach`: restore every slot's link and object-level material, then delete the
-    copies, reflection groups and lookup group this module made once nothing uses them."""
+    copies, and (``tidy``) the reflection and lookup groups this module made once nothing uses
+    them."""
     record = obj.get(RECORD)
     if record is None:
         return
@@ -414,7 +418,8 @@ def detach(obj):
     for copy in copies:
         if copy is not None and copy.get(CREATED) == "material" and copy.users == 0:
             bpy.data.materials.remove(copy)
-    _remove_unused_groups(group)
+    if tidy:
+        _remove_unused_groups(group)
 
 
 def _check_local(id_data, what):
