@@ -95,7 +95,8 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
             report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
             continue
         own = pipeline.map_params(view, scene, depsgraph, [obj])
-        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name)
+        rough = pipeline.map_roughness(scene, [obj])
+        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name, rough)
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):

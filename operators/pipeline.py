@@ -21,11 +21,13 @@ import numpy as np
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table
-from . import bounds, plate
+from ..virtual_reflections.prefilter import prefilter_latlong
+from . import bounds, plate, shading
 from .ground_nodes import GroundLookup
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
 SHADED_GROUND = ("REPLACE", "MODULATE", "MIX")  # looks whose material reads the ground itself
+SHARP_GROUND = 0.1  # roughness under which the ground is read per shading point (sharp)
 ALL_FRAMES = 1048574  # Blender's longest frame range: an image user mapping frame n to n
 
 
@@ -175,6 +177,24 @@ def _floor(view, scene, depsgraph, objects, centre=None):
     return floor, centre
 
 
+def map_roughness(scene, objects) -> float:
+    """The roughness the map of ``objects`` is pre-filtered for: in the Mix look (Glossy: the
+    map over the material's own surface) the roughest object's surface (shading.roughness);
+    0 in the others: Replace and Modulate are the paper's mirror modes (chrome, car paint),
+    and in the World look the renderer's own BSDF blurs the world."""
+    if scene.virtual_reflections.combine != "MIX":
+        return 0.0
+    return max((shading.roughness(o) for o in objects), default=0.0)
+
+
+def per_point_ground(scene, objects) -> bool:
+    """Whether the materials of ``objects`` read the ground per shading point: the Replace,
+    Modulate and Mix looks of sharp surfaces (a rough one's map holds the ground seen from its
+    centre, blurred by `map_roughness`, where a sharp lookup per point would not be)."""
+    combine = scene.virtual_reflections.combine
+    return combine in SHADED_GROUND and map_roughness(scene, objects) < SHARP_GROUND
+
+
 def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
     world's horizon and (in the World look) the ground plane seen from the centre of their
@@ -188,7 +208,7 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
         return view.params
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
-    if scene.virtual_reflections.combine in SHADED_GROUND:
+    if per_point_ground(scene, objects):
         return dataclasses.replace(view.params, up=up)
     origin = bounds.to_engine_frame(view.projection, point=centre)
     # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
@@ -203,7 +223,7 @@ def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None
     """What a Replace, Modulate or Mix material of ``objects`` needs to read the ground the
     objects stand on from the plate ``image`` per shading point (ground_nodes.py), or None
     when Camera View + Ground does not apply (another method or look, `_floor`)."""
-    if scene.virtual_reflections.combine not in SHADED_GROUND:
+    if not per_point_ground(scene, objects):
         return None
     found = _floor(view, scene, depsgraph, objects)
     if found is None:
@@ -249,12 +269,13 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
     return boxes, extents, problems
 
 
-def build_map(pixels, box, map_params, width, report, name=None):
+def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
     -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
     comes from the engine's cache when the plate size, box, params and width were seen before
     (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
-    report's warnings (`fit_warnings`)."""
+    report's warnings (`fit_warnings`). A ``roughness`` over prefilter.SHARP pre-filters the
+    map for it (`map_roughness`)."""
     h, w = pixels.shape[:2]
     with report.timed("table"):
         misses = lookup_table.cache_info().misses
@@ -265,6 +286,9 @@ def build_map(pixels, box, map_params, width, report, name=None):
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
     with report.timed("gather"):
         env = apply_table(table, pixels)
+    if roughness > 0:
+        with report.timed("prefilter"):
+            env = prefilter_latlong(env, roughness)
     return env, table
 
 

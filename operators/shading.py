@@ -525,6 +525,28 @@ def _wire(tree, mode, group, strength, ior, fallback_color):
         links.new(node.outputs["Shader"], surface)
 
 
+GLOSSY_NODES = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
+
+
+def roughness(obj) -> float:
+    """The roughness of ``obj``'s surface, for pre-filtering its map (Replace, Modulate, Mix):
+    the first material slot's Principled or Glossy BSDF "Roughness" when not linked (a linked
+    one, a texture, counts as 0.5), else the material's viewport roughness; 0 without a
+    material. The copies `attach` made keep the original's nodes, so this reads the same
+    before and after."""
+    for slot in obj.material_slots:
+        mat = slot.material
+        if mat is None:
+            continue
+        tree = mat.node_tree if (mat.use_nodes or _USE_NODES_DEPRECATED) else None
+        for node in tree.nodes if tree is not None else ():
+            if node.bl_idname in GLOSSY_NODES and "Roughness" in node.inputs:
+                socket = node.inputs["Roughness"]
+                return 0.5 if socket.is_linked else float(socket.default_value)
+        return float(mat.roughness)
+    return 0.0
+
+
 def _base_color(shader_socket):
     """The material colour feeding a shader: the linked source socket or the default value of
     the first upstream 'Base Color' input (Principled BSDF), else of the shader's own 'Color'

@@ -12,6 +12,7 @@ import math
 
 import bpy
 import numpy as np
+import pytest
 from shots import addon_part, camera_rays, ground_plate
 
 W, H = 240, 135
@@ -24,7 +25,14 @@ def red_at(x, y):
 
 
 def make_shot(combine="REPLACE", method="GROUND"):
-    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
+    )
+    return make_shot_on(bpy.context.scene, bpy.context.active_object, combine, method)
+
+
+def make_shot_on(scene, ball, combine="REPLACE", method="GROUND"):
+    """Camera, plate and Generate for ``ball`` (a sphere at CENTRE)."""
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
@@ -33,11 +41,8 @@ def make_shot(combine="REPLACE", method="GROUND"):
     cam.data.lens = 35.0
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
-    bpy.ops.mesh.primitive_uv_sphere_add(
-        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
-    )
-    ball = bpy.context.active_object
     ball.name = "Ball"
+    bpy.context.view_layer.objects.active = ball
     bpy.ops.object.shade_smooth()
     settings = scene.virtual_reflections
     settings.method = method
@@ -173,3 +178,39 @@ def test_removing_takes_the_ground_group_away(addon):
     addon_part("operators.generate").remove_all()
     created = addon_part("operators.images").CREATED
     assert not [g.name for g in bpy.data.node_groups if g.get(created)]
+
+
+def test_a_rough_surface_gets_a_blurred_map_with_the_ground_in_it(addon):
+    """The Mix look (Glossy) on a rough material (0.35): the map is pre-filtered (smoother
+    than the mirror's) and holds the ground seen from the centre, and no sharp per-point
+    lookup is wired; a mirror material gets the per-point lookup."""
+    shading = addon_part("operators.shading")
+    maps = {}
+    for roughness in (0.0, 0.35):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = bpy.context.scene
+        mat = bpy.data.materials.new("Metal")
+        if bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True
+        mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=tuple(CENTRE))
+        bpy.context.active_object.data.materials.append(mat)
+        scene, ball, _ = make_shot_on(scene, bpy.context.active_object, combine="MIX")
+        assert shading.roughness(ball) == pytest.approx(roughness)
+        image = shading.map_of(ball)
+        maps[roughness] = addon_part("operators.images").read_pixels(image)[..., :3].copy()
+        grounds = [
+            n for m in ball.material_slots for g in bpy.data.node_groups
+            if g.get("vr_mode") == "MIX" for n in g.nodes if n.name == "VR Ground"
+        ]  # fmt: skip
+        assert bool(grounds) == (roughness == 0.0)
+    # Neighbouring texels differ less in the pre-filtered map.
+    sharp, rough = (np.abs(np.diff(maps[r], axis=1)).mean() for r in (0.0, 0.35))
+    assert rough < 0.5 * sharp, (rough, sharp)
+    # The ground seen from the centre is in the rough map: below the ball toward the camera
+    # (between ball and camera, where Camera View alone has only a fill) the checker shows:
+    # red and blue both present in the lower half.
+    lower = maps[0.35][maps[0.35].shape[0] * 5 // 8 :]
+    assert (lower[..., 0] > lower[..., 2] + 0.1).any() and (
+        lower[..., 2] > lower[..., 0] + 0.1
+    ).any()
