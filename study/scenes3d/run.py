@@ -32,8 +32,10 @@ from .scenes import Scene3D
 
 # (name, roughness, the add-on's combine mode for it): the rough subjects in the World look
 # (their own glossy BSDF lit by the map) and in the Mix look (the map pre-filtered for their
-# roughness, issue 11 item 3; IOR `MIX_IOR`: the Fresnel weight ~1, the map is the whole
-# reflection, as for a metal); the truth and baselines are rendered once per roughness.
+# roughness, issue 11 item 3), with IOR 4 and strength `MIX_STRENGTH`: the Mix weight
+# min(1, strength x Fresnel) is 1 at every angle (Fresnel >= 0.36 at IOR 4), so the map is
+# the whole reflection, as for a metal, and the material's own BSDF (lit by the true dome in
+# these renders) has no part in it; the truth and baselines are rendered once per roughness.
 MATERIALS = (
     ("mirror", 0.0, "REPLACE"),
     ("rough 0.15", 0.15, "WORLD"),
@@ -41,7 +43,7 @@ MATERIALS = (
     ("rough 0.15, Mix", 0.15, "MIX"),
     ("rough 0.35, Mix", 0.35, "MIX"),
 )
-MIX_IOR = 100.0
+MIX_IOR, MIX_STRENGTH = 4.0, 3.0
 PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
 BASELINES = (PROBE, STRETCHED, MEAN)
 METRICS = ("psnr", "ssim", "si_rmse")
@@ -215,6 +217,7 @@ def run_scene(
         for combine, generate_roughness in runs:
             settings.combine = combine
             settings.ior = MIX_IOR if combine == "MIX" else 1.45
+            settings.strength = MIX_STRENGTH if combine == "MIX" else 1.0
             build.set_roughness(material, generate_roughness or 0.0)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             t0 = time.perf_counter()
