@@ -29,6 +29,7 @@ import signal
 import sys
 import tempfile
 import time
+import tomllib
 from dataclasses import dataclass
 
 import bpy
@@ -50,7 +51,7 @@ from ..virtual_reflections.imagefiles import (
     write_rgba,
 )
 from ..virtual_reflections.memory import check_fits, plate_job_bytes
-from . import compositor, generate, interreflect, plate, sequence, shading
+from . import batch_record, compositor, generate, interreflect, plate, sequence, shading
 from .batch_lock import OutputLock
 from .batch_options import BatchOptions
 
@@ -607,13 +608,105 @@ def render_frames(options: BatchOptions, started, source):
         raise ValueError(f"--report is a folder, not a file: {report_path}")
     source.check(frames)
     outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
+    elements = {f: element_path(out, name, f) for f in frames}
     plates = {source.file(f) for f in frames} if source.kind == "sequence" else {source.file(0)}
-    _not_a_plate([*outputs.values(), report_path], plates)
+    _not_a_plate([*outputs.values(), *elements.values(), report_path], plates)
     _check_folder(out)
     if os.path.dirname(report_path) != out:
         _check_folder(os.path.dirname(report_path))
     with OutputLock(out, name, frames):
         return _render_frames(options, started, source, frames, outputs, report_path)
+
+
+def element_path(out, name, frame):
+    """The CG element of ``frame``, kept beside its composite: the render alone, RGBA
+    scene-linear float EXR, ``<name>_render.<frame:04d>.exr`` (a sequence of its own)."""
+    return os.path.join(out, f"{name}_render.{frame:04d}.exr")
+
+
+def _extension_version():
+    """The extension's version, from its blender_manifest.toml ("unknown" without one)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        with open(os.path.join(root, "blender_manifest.toml"), "rb") as f:
+            return str(tomllib.load(f).get("version", "unknown"))
+    except (OSError, ValueError):
+        return "unknown"
+
+
+def _view(scene):
+    """The colour management a PNG is written through (the scene's view transform)."""
+    view = scene.view_settings
+    return {
+        "display": scene.display_settings.display_device,
+        "view_transform": view.view_transform,
+        "look": view.look,
+        "exposure": round(view.exposure, 6),
+        "gamma": round(view.gamma, 6),
+    }
+
+
+def _run_inputs(scene, options, objects, size, use_passes):
+    """What makes every frame of this run, besides its plate (batch_record): the shot, the
+    effective settings (after the command line's), passes, render and output."""
+    settings = scene.virtual_reflections
+    ground = getattr(settings, "ground_object", None)
+    reflections = {
+        key: getattr(settings, key)
+        for key in (
+            "method",
+            "combine",
+            "resolution",
+            "front",
+            "triangles",
+            "enlarge",
+            "border",
+            "strength",
+            "ior",
+            "smoothing",
+        )  # fmt: skip
+        if hasattr(settings, key)
+    }
+    reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
+    reflections["ground_object"] = ground.name if ground is not None else None
+    reflections["objects"] = sorted(o.name for o in objects)
+    if scene.render.engine == "CYCLES":
+        samples = scene.cycles.samples
+    else:
+        samples = getattr(scene.eevee, "taa_render_samples", None)
+    return {
+        "extension_version": _extension_version(),
+        "shot": batch_record.file_identity(bpy.data.filepath) if bpy.data.filepath else None,
+        "scene": scene.name,
+        "reflections": reflections if not options.no_reflections else None,
+        "passes": {
+            "passes": options.passes if use_passes else 1,
+            "tolerance": options.tolerance or interreflect.TOLERANCE,
+            "max_passes": options.max_passes or interreflect.R_MAX,
+        }
+        if use_passes
+        else 1,
+        "render": {"engine": scene.render.engine, "size": list(size), "samples": samples},
+        "format": options.format,
+        "view": _view(scene) if options.format == "png" else "scene-linear",
+    }
+
+
+def _frame_inputs(run_inputs, source, frame):
+    """``run_inputs`` and the plate of ``frame`` (its file's size and time; a movie's frame)."""
+    plate_file = batch_record.file_identity(source.file(frame))
+    if source.kind == "movie":
+        plate_file["frame"] = frame
+    return {**run_inputs, "plate": plate_file}
+
+
+def _resume(paths, size, inputs, overwrite):
+    """(skip, why): skip a frame only when its outputs ``paths`` are complete and their record
+    says ``inputs`` made them; ``why`` says why a complete frame is rendered again."""
+    if overwrite or not all(_complete(p, size) for p in paths):
+        return False, None
+    why = batch_record.stale(paths[0], inputs)
+    return why is None, why
 
 
 def _render_frames(options, started, source, frames, outputs, report_path):
@@ -635,7 +728,9 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     size = _render_size(scene)
     # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
     # run's. The report may be shared with a live run on other frames: only dead runs' go.
-    remove_stale_temps(out, _stems(outputs.values()), live_ok=True)
+    owned = [*outputs.values(), *(element_path(out, name, f) for f in outputs)]
+    records = [os.path.basename(batch_record.record_path(p))[1:] for p in outputs.values()]
+    remove_stale_temps(out, _stems(owned) + records, live_ok=True)
     remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
     use_passes = not options.no_reflections and passes != 1
     header = {
@@ -647,6 +742,13 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         "plate_kind": source.kind,
         "out": out,
         "format": fmt,
+        "colour": {
+            "element": "scene-linear Rec.709, float RGBA EXR (premultiplied)",
+            "composite": "scene-linear Rec.709, half-float EXR"
+            if fmt == "exr"
+            else "the scene's view transform: {view_transform}, look {look}, exposure "
+            "{exposure}, gamma {gamma}, display {display}".format(**_view(scene)),
+        },
         "requested": options.frames,
         "blender": bpy.app.version_string,
         "render": {
@@ -667,6 +769,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         f"frames {len(frames)} ({frames[0]}-{frames[-1]}), plate {source.kind} {source.text}, "
         f"render {size[0]}x{size[1]} with {scene.render.engine}, out {out}"
     )
+    print(f"colour: composites {header['colour']['composite']}; CG elements scene-linear EXR")
     previous = _read_report(report_path)
     objects = []
     warnings = []
@@ -677,6 +780,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         if use_passes:
             warnings.append("--passes: pass 1 is Generate, so bounds are not smoothed over frames")
 
+    run_inputs = _run_inputs(scene, options, objects, size, use_passes)
     entries = {}
     filters = {}
     step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
@@ -701,9 +805,14 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         for i, frame in enumerate(frames, 1):
             t0 = time.perf_counter()
             path = outputs[frame]
-            if not options.overwrite and _complete(path, size):
-                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path]}))
+            element = element_path(out, name, frame)
+            inputs = _frame_inputs(run_inputs, source, frame)
+            skip, why = _resume([path, element], size, inputs, options.overwrite)
+            if skip:
+                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path, element]}))
                 entry["status"] = "skipped"
+                entry.pop("rendered_again", None)
+                entry["fingerprint"] = batch_record.digest(inputs)
                 if objects and not use_passes:
                     scene.frame_set(frame)
                     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -713,8 +822,14 @@ def _render_frames(options, started, source, frames, outputs, report_path):
                 print(f"frame {i}/{len(frames)} [{frame}] skipped: {done} is complete")
                 _write_json(report_path, _report(header, entries, frames, warnings, started))
                 continue
+            if why:
+                print(f"frame {i}/{len(frames)} [{frame}] rendered again: {why}", flush=True)
             try:
-                entry = job.render(frame, path)
+                batch_record.forget(path)  # the old record must not vouch for new files
+                entry = job.render(frame, path, element)
+                entry["fingerprint"] = batch_record.write(path, inputs)
+                if why:
+                    entry["rendered_again"] = why
             except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
                 error = f"frame {frame}: {_one_line(exc)}"
                 entries[frame] = {"frame": frame, "status": "failed", "error": error}
@@ -766,9 +881,9 @@ class FrameJob:
     use_passes: bool
     options: BatchOptions
 
-    def render(self, frame, path):
-        """One frame: plate, maps, render, composite written atomically; returns its report
-        entry."""
+    def render(self, frame, path, element):
+        """One frame: plate, maps, render (kept as the CG element ``element``), composite
+        written atomically; returns its report entry."""
         scene, source, objects, options = self.scene, self.source, self.objects, self.options
         times = {}
         warnings = []
@@ -803,6 +918,7 @@ class FrameJob:
                 )
                 _raise_if_signalled()
             timed("passes", t)
+            write_rgba(element, rgba)
             pass_reports = [_pass_report(r) for r in reports]
             for r in reports:
                 warnings += list(r.warnings)
@@ -839,6 +955,7 @@ class FrameJob:
                 rgba, seconds = _render_rgba(scene, render_path)
                 times["render"] = round(seconds, 4)
                 t = time.perf_counter()
+                commit(render_path, element, rgba.shape[1], rgba.shape[0])
             except ImageError as exc:  # Blender could not write it whole (a full disk)
                 raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
             finally:
@@ -852,7 +969,7 @@ class FrameJob:
         times["total"] = round(sum(v for k, v in times.items()), 4)
         entry.update(
             {
-                "outputs": [path],
+                "outputs": [path, element],
                 "times": times,
                 "passes": len(pass_reports) or 1,
                 "pass_reports": pass_reports,
