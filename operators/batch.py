@@ -716,7 +716,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
             "strength",
             "ior",
             "smoothing",
-        )  # fmt: skip
+        )
         if hasattr(settings, key)
     }
     reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
