@@ -21,7 +21,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from ..virtual_reflections.imagefiles import write_map
+from ..virtual_reflections.imagefiles import ImageError, write_map
 from . import images
 from .choices import addon_preferences
 
@@ -130,13 +130,20 @@ def _read_from(image, path: str = ""):
 
 def pack(image):
     """Pack ``image``'s pixels into the .blend as the engine's compressed half-float EXR (the
-    same file `store_map` saves), instead of Blender's uncompressed float32 one."""
+    same file `store_map` saves), instead of Blender's uncompressed float32 one; Blender's own
+    when that cannot be written (the map is never lost on save)."""
     pixels = images.read_pixels(image)[..., :3]
-    with tempfile.TemporaryDirectory(prefix="vr-pack-") as folder:
-        path = os.path.join(folder, bpy.path.clean_name(image.name) + ".exr")
-        write_map(path, pixels, _layout(images.created(image)))
-        with open(path, "rb") as f:
-            data = f.read()
+    try:
+        with tempfile.TemporaryDirectory(prefix="vr-pack-") as folder:
+            path = os.path.join(folder, bpy.path.clean_name(image.name) + ".exr")
+            write_map(path, pixels, _layout(images.created(image)))
+            with open(path, "rb") as f:
+                data = f.read()
+    except (ImageError, OSError):
+        # No OpenImageIO, or no room for the temporary file: this runs while the .blend is
+        # saved, so keep the pixels the way Blender can (its own, uncompressed, EXR).
+        image.pack()
+        return
     if image.packed_file:
         image.unpack(method="REMOVE")
     image.filepath_raw = "//" + bpy.path.clean_name(image.name) + ".exr"  # the unpack name

@@ -97,3 +97,22 @@ def test_generate_keeps_pipeline_maps(addon, tmp_path, storage):
     image = bpy.data.images["VR Map Ball"]
     assert image.source == "FILE" and image.is_float
     np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=2e-3, atol=1e-3)
+
+
+def test_packing_without_openimageio_still_keeps_the_map(addon, tmp_path, monkeypatch):
+    """No OpenImageIO in this Blender: the map is packed Blender's way, never lost on save."""
+    env = smooth_map(64)
+    maps.store_map("VR Map Fallback", env)
+    imagefiles = addon_part("virtual_reflections.imagefiles")
+
+    def missing():
+        raise imagefiles.ImageError("OpenImageIO is not installed (pip install OpenImageIO)")
+
+    monkeypatch.setattr(imagefiles, "_oiio", missing)
+    blend = tmp_path / "fallback.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    monkeypatch.undo()
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    image = bpy.data.images["VR Map Fallback"]
+    assert image.packed_file is not None
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=1e-3, atol=1e-3)
