@@ -84,6 +84,13 @@ def test_the_shots_own_compositor_makes_the_composite(plates, tmp_path):
         from_plate <= 0.04045, from_plate / 12.92, ((from_plate + 0.055) / 1.055) ** 2.4
     )
     np.testing.assert_allclose(comp[outside], srgb[outside], atol=0.01)
+    # One frame (a still plate, no --frames): the same compositor makes the composite.
+    still = tmp_path / "still"
+    r = run(blend, "--plate", plates.replace("####", "0001"), "--out", still, "--resolution", 256)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "composite: the shot's own compositor" in r.stdout and "Grade" in r.stdout
+    one = read(still / "graded_composite.exr")[..., :3]
+    np.testing.assert_allclose(one, comp, atol=2e-3)
 
 
 def test_png_goes_through_the_view_transform_and_says_so(plates, tmp_path):
