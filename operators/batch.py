@@ -303,16 +303,18 @@ def _render_rgba(scene, temp, use_compositor=False):
 def artist_compositor(scene):
     """What the shot's own compositor is, in a few words, when it has one beyond the plate
     set-up (`compositor.setup_from_plate` keeps it under the plate: 4.5 in the scene's tree,
-    5.x nested in the "VR Composite" group); None when it has none."""
+    5.x nested in the "VR Composite" group); None when it has none or had compositing off."""
     plain = {"R_LAYERS", "COMPOSITE", "VIEWER", "GROUP_OUTPUT", "GROUP_INPUT", "FRAME", "REROUTE"}
     try:
         record = json.loads(scene.get(compositor.RECORD, "{}"))
     except ValueError:
         record = {}
-    previous = (record.get("compositor") or {}).get("previous_group")
-    if previous:
-        tree = bpy.data.node_groups.get(previous)
-    elif not record.get("compositor", {}).get("group"):
+    setup = record.get("compositor") or {}
+    if record.get("use_compositing") is False or setup.get("use_nodes") is False:
+        return None  # the artist had compositing off: theirs is not the shot's look
+    if setup.get("previous_group"):
+        tree = bpy.data.node_groups.get(setup["previous_group"])
+    elif not setup.get("group"):
         tree = getattr(scene, "node_tree", None)  # 4.5: the scene's own tree
     else:
         tree = None

@@ -50,11 +50,12 @@ def plates(clean_file, tmp_path):
     return str(write_plates(tmp_path / "plates")[0]).replace("0001", "####")
 
 
-def shot(tmp_path, compositor=False):
+def shot(tmp_path, compositor=False, compositing=True):
     scene = bpy.context.scene
     build_scene()
     if compositor:
         add_exposure_compositor(scene)
+    scene.render.use_compositing = compositing
     path = tmp_path / ("graded.blend" if compositor else "shot.blend")
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     return path
@@ -91,6 +92,15 @@ def test_the_shots_own_compositor_makes_the_composite(plates, tmp_path):
     assert "composite: the shot's own compositor" in r.stdout and "Grade" in r.stdout
     one = read(still / "graded_composite.exr")[..., :3]
     np.testing.assert_allclose(one, comp, atol=2e-3)
+
+
+def test_a_compositor_switched_off_is_not_used(plates, tmp_path):
+    blend = shot(tmp_path, compositor=True, compositing=False)
+    out = tmp_path / "out"
+    r = run(blend, "--plate", plates, "--out", out, "--frames", "1", "--resolution", 256)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    report = json.loads((out / "graded.report.json").read_text())
+    assert "premultiplied alpha over" in report["colour"]["over"]
 
 
 def test_png_goes_through_the_view_transform_and_says_so(plates, tmp_path):
