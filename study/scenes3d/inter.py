@@ -1,0 +1,186 @@
+"""Inter-reflections against the 3D truth (issue 11, item 4): two or three mirror objects side
+by side, path-traced with enough glossy bounces that each shows the others (and their
+reflections) in the truth; per add-on method, one pass (Generate, one render) against the
+paper's passes until converged (`operators/interreflect.py` `render_passes(..., "auto")`),
+both composited over the plate and scored on all the mirrors' pixels.
+
+Per scene: the plate (no mirrors), the truth (every mirror in the full scene), the plate mean
+(the mirrors alone under a world of the 8-bit plate's mean colour: a baseline; they see each
+other there too, in that grey), then per method the two renders of the mirrors alone (ground
+and neighbours hidden, combine Replace: the chrome look; `render_passes` refuses World).
+Metrics as run.py: PSNR and SSIM of display values, si-RMSE of linear ones, on the mirrors'
+pixels (alpha > 0.5), SSIM over the box around all of them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pathlib
+import time
+
+import bpy
+import numpy as np
+
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
+
+from ..evaluate.metrics import to_display
+from . import build
+from .run import (
+    MEAN,
+    Addon,
+    border_pixels,
+    default_method_label,
+    new_file,
+    render,
+    score,
+    subject_border,
+    write_png,
+)
+from .scenes import Scene3D
+
+GLOSSY_BOUNCES = 8  # the truth: mirrors in mirrors in mirrors ... (the passes stop near 3)
+ONE, AUTO = "one pass", "auto"
+PLATE_ITSELF = "(plate itself)"
+
+
+class InterAddon(Addon):
+    """The add-on with the modules the passes need."""
+
+    def __init__(self):
+        super().__init__()
+        self.interreflect = importlib.import_module(
+            f"{self.module.__name__}.operators.interreflect"
+        )
+        self.plate = importlib.import_module(f"{self.module.__name__}.operators.plate")
+
+
+def union_border(scene, camera, objects):
+    """The screen box (fractions, y up) around every object's (subject_border)."""
+    boxes = np.array([subject_border(scene, camera, obj) for obj in objects])
+    return (
+        float(boxes[:, 0].min()),
+        float(boxes[:, 1].max()),
+        float(boxes[:, 2].min()),
+        float(boxes[:, 3].max()),
+    )
+
+
+def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, samples, log):
+    """One scene: plate, truth, plate mean, one pass and auto passes per method; scores.
+    Returns (record, crops) with crops {column: display crop around the mirrors}."""
+    started = time.perf_counter()
+    new_file()
+    scene, camera, subject, others, dome, material = build.build(spec, width, samples)
+    objects = [subject, *build.add_companions(scene, spec, material)]
+    scene.cycles.glossy_bounces = GLOSSY_BOUNCES
+    scene.cycles.max_bounces = GLOSSY_BOUNCES + 2
+    height = scene.render.resolution_y
+    work.mkdir(parents=True, exist_ok=True)
+    renders = 0
+
+    def shot(name, border=None):
+        nonlocal renders
+        renders += 1
+        return render(scene, work / f"{name}.exr", border)
+
+    for obj in objects:
+        obj.hide_render = True
+    scene.render.film_transparent = False
+    plate = shot("plate")[..., :3]
+    write_png(work / "plate.png", plate)
+    for obj in objects:
+        obj.hide_render = False
+    border = union_border(scene, camera, objects)
+    crop = border_pixels(border, width, height)
+    truth = shot("truth", border)[..., :3]
+
+    for obj in others:
+        obj.hide_render = True
+    scene.render.film_transparent = True
+    plate_image = bpy.data.images.load(str(work / "plate.png"))
+    plate8 = srgb_to_linear(read_rgba(str(work / "plate.png"))[..., :3])
+    scene.world = build.mean_world(plate8.reshape(-1, 3).mean(0))
+    alone = {MEAN: shot("plate mean", border)}
+    scene.world = dome
+    mask = alone[MEAN][..., 3] > 0.5
+
+    settings = scene.virtual_reflections
+    settings.plate_image = plate_image
+    settings.resolution = "AUTO"
+    settings.combine = "REPLACE"
+    for obj in objects:
+        obj.virtual_reflections.enabled = True
+    pixels, _ = addon.plate.pixels(scene)
+    passes, warnings = {}, {}
+    for ident, label in addon.methods:
+        settings.method = ident
+        passes[label] = {}
+        for run, asked in ((ONE, 1), (AUTO, "auto")):
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            t0 = time.perf_counter()
+            _, rgba, reports = addon.interreflect.render_passes(
+                scene, depsgraph, objects, pixels, passes=asked
+            )
+            seconds = time.perf_counter() - t0
+            renders += len(reports)
+            warnings[label] = sorted({w for r in reports for w in r.warnings})
+            alone[f"{label}: {run}"] = rgba
+            passes[label][run] = {
+                "passes": len(reports),
+                "changes": [r.change for r in reports],
+                "seconds": seconds,
+            }
+            addon.generate.remove_all()
+
+    results, crops = {}, {}
+    y0, y1, x0, x1 = crop
+    for column, rgba in alone.items():
+        composite = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+        results[column] = score(composite, truth, mask, crop)
+        crops[column] = to_display(composite[y0:y1, x0:x1])
+    results[PLATE_ITSELF] = score(plate, truth, mask, crop)
+    crops["Truth"] = to_display(truth[y0:y1, x0:x1])
+    for label in passes:
+        for run in (ONE, AUTO):
+            passes[label][run].update(results[f"{label}: {run}"])
+    record = {
+        "scene": spec.to_json(),
+        "mirrors": len(objects),
+        "subject_pixels": int(mask.sum()),
+        "results": {"mirror": {MEAN: results[MEAN], PLATE_ITSELF: results[PLATE_ITSELF]}},
+        "passes": passes,
+        "warnings": warnings,
+        "renders": renders,
+        "seconds": time.perf_counter() - started,
+    }
+    log(
+        f"{spec.name}: {mask.sum()} px, PSNR one pass / auto: "
+        + ", ".join(
+            f"{m} {p[ONE]['psnr']:.2f} / {p[AUTO]['psnr']:.2f} (r = {p[AUTO]['passes']})"
+            for m, p in passes.items()
+        )
+        + f"; plate mean {results[MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, "
+        f"{renders} renders)"
+    )
+    return record, crops
+
+
+def run_scenes(specs, work, width, samples, log):
+    """Every scene in turn; the add-on registered once. Returns (records, crops, methods), the
+    add-on's default method first."""
+    addon = InterAddon()
+    records, crops = [], {}
+    try:
+        for spec in specs:
+            record, scene_crops = run_scene(
+                spec, addon, pathlib.Path(work) / spec.name, width, samples, log
+            )
+            records.append(record)
+            crops[spec.name] = scene_crops
+        default = default_method_label(addon)
+        methods = [default] + [label for _, label in addon.methods if label != default]
+    finally:
+        new_file()
+        addon.close()
+    return records, crops, methods
