@@ -40,8 +40,13 @@ from .run import (
 from .scenes import Scene3D
 
 GLOSSY_BOUNCES = 8  # the truth: mirrors in mirrors in mirrors ... (the passes stop near 3)
-ONE, AUTO = "one pass", "auto"
+ONE, PLAIN, AUTO = "one pass", "auto, maps as built", "auto"
+# (name, passes, render_passes' ``neighbours``): one pass; the passes with each map as Generate
+# builds it from the composite (Listing 1); the passes with the neighbours placed in 3D
+RUNS = ((ONE, 1, True), (PLAIN, "auto", False), (AUTO, "auto", True))
+INTER_THRESHOLD = 0.05  # display units: a pixel whose truth changes this much is "inter"
 PLATE_ITSELF = "(plate itself)"
+BLIND = "truth without inter-reflections"  # the mirrors blind to each other: a ceiling for 1 pass
 
 
 class InterAddon(Addon):
@@ -94,6 +99,11 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
     border = union_border(scene, camera, objects)
     crop = border_pixels(border, width, height)
     truth = shot("truth", border)[..., :3]
+    for obj in objects:  # the same mirrors, blind to each other: where inter-reflections show
+        obj.visible_glossy = False
+    blind = shot("truth without inter-reflections", border)[..., :3]
+    for obj in objects:
+        obj.visible_glossy = True
 
     for obj in others:
         obj.hide_render = True
@@ -104,6 +114,8 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
     alone = {MEAN: shot("plate mean", border)}
     scene.world = dome
     mask = alone[MEAN][..., 3] > 0.5
+    changed = np.abs(to_display(truth) - to_display(blind)).max(-1) > INTER_THRESHOLD
+    region = mask & changed
 
     settings = scene.virtual_reflections
     settings.plate_image = plate_image
@@ -116,11 +128,11 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
     for ident, label in addon.methods:
         settings.method = ident
         passes[label] = {}
-        for run, asked in ((ONE, 1), (AUTO, "auto")):
+        for run, asked, placed in RUNS:
             depsgraph = bpy.context.evaluated_depsgraph_get()
             t0 = time.perf_counter()
             _, rgba, reports = addon.interreflect.render_passes(
-                scene, depsgraph, objects, pixels, passes=asked
+                scene, depsgraph, objects, pixels, passes=asked, neighbours=placed
             )
             seconds = time.perf_counter() - t0
             renders += len(reports)
@@ -133,31 +145,42 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
             }
             addon.generate.remove_all()
 
-    results, crops = {}, {}
+    results, inter, crops = {}, {}, {}
     y0, y1, x0, x1 = crop
-    for column, rgba in alone.items():
-        composite = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+    composites = {
+        column: rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate for column, rgba in alone.items()
+    }
+    composites[PLATE_ITSELF] = plate
+    composites[BLIND] = blind
+    for column, composite in composites.items():
         results[column] = score(composite, truth, mask, crop)
+        inter[column] = score(composite, truth, region, crop) if region.any() else None
         crops[column] = to_display(composite[y0:y1, x0:x1])
-    results[PLATE_ITSELF] = score(plate, truth, mask, crop)
     crops["Truth"] = to_display(truth[y0:y1, x0:x1])
     for label in passes:
-        for run in (ONE, AUTO):
+        for run, _, _ in RUNS:
             passes[label][run].update(results[f"{label}: {run}"])
+            passes[label][run]["inter"] = inter[f"{label}: {run}"]
     record = {
         "scene": spec.to_json(),
         "mirrors": len(objects),
         "subject_pixels": int(mask.sum()),
-        "results": {"mirror": {MEAN: results[MEAN], PLATE_ITSELF: results[PLATE_ITSELF]}},
+        "inter_pixels": int(region.sum()),
+        "results": {
+            "mirror": {m: results[m] for m in (MEAN, PLATE_ITSELF, BLIND)},
+            "inter": {m: inter[m] for m in (MEAN, PLATE_ITSELF, BLIND)},
+        },
         "passes": passes,
         "warnings": warnings,
         "renders": renders,
         "seconds": time.perf_counter() - started,
     }
     log(
-        f"{spec.name}: {mask.sum()} px, PSNR one pass / auto: "
+        f"{spec.name}: {mask.sum()} px ({region.sum()} inter), PSNR one pass / auto as built / "
+        "auto: "
         + ", ".join(
-            f"{m} {p[ONE]['psnr']:.2f} / {p[AUTO]['psnr']:.2f} (r = {p[AUTO]['passes']})"
+            f"{m} {p[ONE]['psnr']:.2f} / {p[PLAIN]['psnr']:.2f} / {p[AUTO]['psnr']:.2f} "
+            f"(r = {p[AUTO]['passes']})"
             for m, p in passes.items()
         )
         + f"; plate mean {results[MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, "
