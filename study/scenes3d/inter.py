@@ -46,6 +46,7 @@ ONE, PLAIN, AUTO = "one pass", "auto, maps as built", "auto"
 RUNS = ((ONE, 1, True), (PLAIN, "auto", False), (AUTO, "auto", True))
 INTER_THRESHOLD = 0.05  # display units: a pixel whose truth changes this much is "inter"
 PLATE_ITSELF = "(plate itself)"
+CEILING = "one pass, inter pixels exact"
 BLIND = "truth without inter-reflections"  # the mirrors blind to each other: a ceiling for 1 pass
 
 
@@ -161,6 +162,10 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
         for run, _, _ in RUNS:
             passes[label][run].update(results[f"{label}: {run}"])
             passes[label][run]["inter"] = inter[f"{label}: {run}"]
+        # the most passes could bring: one pass with the inter pixels exactly the truth's
+        perfect = composites[f"{label}: {ONE}"].copy()
+        perfect[region] = truth[region]
+        passes[label][CEILING] = score(perfect, truth, mask, crop)
     record = {
         "scene": spec.to_json(),
         "mirrors": len(objects),

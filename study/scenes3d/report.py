@@ -329,20 +329,31 @@ def add_block(path, name: str, heading: str, table: str, command: str) -> None:
 
 # --- inter-reflections (issue 11, item 4) -------------------------------------------------------
 
-ONE, AUTO = "one pass", "auto"  # as inter.py (which imports bpy)
+ONE, PLAIN, AUTO = "one pass", "auto, maps as built", "auto"  # as inter.py (which imports bpy)
+RUNS = (ONE, PLAIN, AUTO)
+BLIND = "truth without inter-reflections"
+CEILING = "one pass, inter pixels exact"
 
 
 def inter_summary(data) -> dict:
-    """{method: {"one": mean scores, "auto": mean scores, "gain_psnr", "gain_ssim": mean auto -
-    one, "better": scenes where auto's PSNR is above one pass's, "passes": [r per scene]}}."""
+    """{method: {run: mean scores over the cases (all the mirrors' pixels), run + " inter":
+    mean PSNR on the pixels where the truth shows the mirrors in each other, "gain_psnr",
+    "gain_ssim": auto - one pass, "better": cases where auto's PSNR is above one pass's,
+    "passes": [r per case]}}."""
     out = {}
     for method in data["addon_methods"]:
         rows = [r["passes"][method] for r in data["scenes"]]
         entry = {
-            run: {m: _finite_mean([row[run][m] for row in rows]) for m in METRICS}
-            for run in (ONE, AUTO)
+            run: {m: _finite_mean([row[run][m] for row in rows]) for m in METRICS} for run in RUNS
         }
+        for run in RUNS:
+            entry[run + " inter"] = _finite_mean(
+                [row[run]["inter"]["psnr"] for row in rows if row[run].get("inter")]
+            )
         entry["gain_psnr"] = entry[AUTO]["psnr"] - entry[ONE]["psnr"]
+        entry["ceiling_psnr"] = _finite_mean(
+            [row[CEILING]["psnr"] - row[ONE]["psnr"] for row in rows if CEILING in row]
+        )
         entry["gain_ssim"] = entry[AUTO]["ssim"] - entry[ONE]["ssim"]
         entry["better"] = sum(row[AUTO]["psnr"] > row[ONE]["psnr"] for row in rows)
         entry["passes"] = [row[AUTO]["passes"] for row in rows]
@@ -350,43 +361,71 @@ def inter_summary(data) -> dict:
     return out
 
 
+def _pair(scores) -> str:
+    return f"{_fmt(scores['psnr'])} / {_fmt(scores['ssim'], 3)}"
+
+
+def _inter_psnr(scores) -> str:
+    return _fmt(scores["inter"]["psnr"]) if scores.get("inter") else "–"
+
+
+def _signed(v) -> str:
+    return "–" if not math.isfinite(v) else f"{v:+.2f} dB"
+
+
+def _ceiling(runs) -> str:
+    if CEILING not in runs:
+        return "–"
+    return f"{runs[CEILING]['psnr'] - runs[ONE]['psnr']:+.2f} dB"
+
+
 def table_inter(data) -> str:
-    """Per case and method: one pass and auto (PSNR / SSIM, r), the gain; then the means."""
+    """Per case and method: PSNR / SSIM on all the mirrors' pixels of one pass, the passes with
+    the maps as Generate builds them, and with the neighbours placed (auto, r); PSNR on the
+    pixels where the truth shows the mirrors in each other; then the means per method."""
     methods = data["addon_methods"]
     lines = [
-        "| case | mirrors (px) | method | one pass | auto passes (r) | auto − one pass |"
-        " plate mean | plate itself |",
-        "|---|---|---|---|---|---|---|---|",
+        "| case | mirrors: px (inter px) | method | one pass | auto, maps as built (r) |"
+        " auto (r) | auto − one pass | inter px PSNR: one / as built / auto |"
+        " plate mean | mirrors blind to each other |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in data["scenes"]:
-        mean, plate = r["results"]["mirror"][MEAN], r["results"]["mirror"]["(plate itself)"]
+        mirror = r["results"]["mirror"]
         for k, method in enumerate(methods):
-            one, auto = r["passes"][method][ONE], r["passes"][method][AUTO]
+            runs = r["passes"][method]
+            one, plain, auto = runs[ONE], runs[PLAIN], runs[AUTO]
             first = k == 0
+            head = (
+                f"| {_case(r)} | {r['mirrors']}: {r['subject_pixels']} ({r['inter_pixels']}) |"
+                if first
+                else "| | |"
+            )
+            tail = f" {_pair(mirror[MEAN])} | {_pair(mirror[BLIND])} |" if first else " | |"
             lines.append(
-                f"| {_case(r) if first else ''} | "
-                f"{str(r['mirrors']) + ' (' + str(r['subject_pixels']) + ')' if first else ''} | "
-                f"{method} | {_fmt(one['psnr'])} / {_fmt(one['ssim'], 3)} | "
-                f"{_fmt(auto['psnr'])} / {_fmt(auto['ssim'], 3)} ({auto['passes']}) | "
+                f"{head} {method} | {_pair(one)} | {_pair(plain)} ({plain['passes']}) | "
+                f"{_pair(auto)} ({auto['passes']}) | "
                 f"{auto['psnr'] - one['psnr']:+.2f} dB / {auto['ssim'] - one['ssim']:+.3f} | "
-                + (f"{_fmt(mean['psnr'])} / {_fmt(mean['ssim'], 3)} | " if first else " | ")
-                + (f"{_fmt(plate['psnr'])} / {_fmt(plate['ssim'], 3)} |" if first else " |")
+                f"{_ceiling(runs)} | "
+                f"{_inter_psnr(one)} / {_inter_psnr(plain)} / {_inter_psnr(auto)} |" + tail
             )
     s = inter_summary(data)
-    scenes_n = len(data["scenes"])
+    n = len(data["scenes"])
     lines += [
         "",
-        "| method (mean of the cases) | one pass | auto passes | auto − one pass |"
-        " auto above one pass (PSNR) | r per case |",
-        "|---|---|---|---|---|---|",
+        "| method (mean of the cases) | one pass | auto, maps as built | auto |"
+        " auto − one pass | at most (inter px exact) | auto above one pass (PSNR) |"
+        " inter px PSNR: one / as built / auto | r per case |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for method in methods:
         e = s[method]
         lines.append(
-            f"| {method} | {_fmt(e[ONE]['psnr'])} / {_fmt(e[ONE]['ssim'], 3)} | "
-            f"{_fmt(e[AUTO]['psnr'])} / {_fmt(e[AUTO]['ssim'], 3)} | "
-            f"{e['gain_psnr']:+.2f} dB / {e['gain_ssim']:+.3f} | {e['better']}/{scenes_n} | "
-            f"{', '.join(map(str, e['passes']))} |"
+            f"| {method} | {_pair(e[ONE])} | {_pair(e[PLAIN])} | {_pair(e[AUTO])} | "
+            f"{e['gain_psnr']:+.2f} dB / {e['gain_ssim']:+.3f} | {_signed(e['ceiling_psnr'])} | "
+            f"{e['better']}/{n} | "
+            f"{_fmt(e[ONE + ' inter'])} / {_fmt(e[PLAIN + ' inter'])} / "
+            f"{_fmt(e[AUTO + ' inter'])} | {', '.join(map(str, e['passes']))} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -396,7 +435,9 @@ def contact_sheet_inter(data, crops, path) -> None:
     the mirrors and composited over the plate."""
     plt = _plt()
     names = [r["scene"]["name"] for r in data["scenes"] if r["scene"]["name"] in crops]
-    columns = ["Truth"] + [f"{m}: {run}" for m in data["addon_methods"] for run in (ONE, AUTO)]
+    columns = ["Truth", BLIND] + [
+        f"{m}: {run}" for m in data["addon_methods"] for run in (ONE, AUTO)
+    ]
     records = {r["scene"]["name"]: r for r in data["scenes"]}
     fig, axes = plt.subplots(
         len(names),
@@ -411,9 +452,14 @@ def contact_sheet_inter(data, crops, path) -> None:
             ax.set_xticks([])
             ax.set_yticks([])
             if i == 0:
-                ax.set_title(column.replace(": ", "\n"), fontsize=7)
+                ax.set_title(
+                    column.replace(": ", "\n").replace(" without", "\nwithout"), fontsize=7
+                )
             if column == "Truth":
                 ax.set_xlabel(_case(records[name]), fontsize=6)
+            elif column == BLIND:
+                m = records[name]["results"]["mirror"][BLIND]
+                ax.set_xlabel(f"{m['psnr']:.2f} dB / {m['ssim']:.3f}", fontsize=6)
             else:
                 method, run = column.split(": ")
                 m = records[name]["passes"][method][run]
