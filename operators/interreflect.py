@@ -154,6 +154,8 @@ def render_passes(
             plate_small = resize_nearest(plate, h, w)
             composite = over(rgba, plate_small)
             own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
+            # ... and shrunk, for reading a neighbour: its edge pixels are mixed with the plate
+            core = {obj: ~_grow(index != i, MASK_GROW) for obj, i in ids.items()}
             coverage = np.logical_or.reduce(list(own.values()))
             reports.append(
                 PassReport(
@@ -195,7 +197,7 @@ def render_passes(
                     inside[mine] = plate_inside[mine]
                     generate.generate(scene, depsgraph, [obj], pixels=source)
                     if neighbours:
-                        others = {o: own[o] for o in done if o is not obj}
+                        others = {o: core[o] for o in done if o is not obj}
                         _place_neighbours(scene, depsgraph, obj, others, source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started

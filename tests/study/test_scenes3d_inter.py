@@ -1,11 +1,11 @@
 """Inter-reflections against the 3D truth (`python -m study scenes --cases inter`): the case
 descriptions, and the quick case (two mirror spheres side by side, 192 x 108, 16 samples) run
 through the bpy module: the truth shows the mirrors in each other, every method's one pass and
-passes score finitely, and the claim of docs/scenes3d.md's "Inter-reflections" section holds:
-with the add-on's default method the passes bring the mirrors' pixels no further from the
-truth than one pass does (within the noise), and placing the neighbours (`render_passes`'
-default) brings the pixels where the truth shows the other mirror closer to it than the maps
-as Generate builds them. About 60 s on two cores; skipped only when bpy cannot be imported."""
+passes score finitely, and the claims of docs/scenes3d.md's "Inter-reflections" section hold:
+with the add-on's default method the passes leave the mirrors' pixels no further from the
+truth than one pass (within the noise), and no method can gain much there, because the mirrors
+show each other on a small share of their pixels. About 60 s on two cores (bpy 4.5); skipped
+only when bpy cannot be imported."""
 
 import json
 import math
@@ -76,11 +76,18 @@ def test_the_defaults_passes_are_no_worse_than_one_pass(quick_inter):
     assert runs["auto"]["psnr"] >= runs["one pass"]["psnr"] - NOISE_DB, runs
 
 
-def test_placed_neighbours_bring_the_inter_pixels_closer(quick_inter):
+def test_the_passes_can_gain_little_on_these_mirrors(quick_inter):
+    # Why the passes hardly move the scores: the mirrors show each other on a small share of
+    # their pixels, so even exact inter-reflections there (the rest left as one pass) would add
+    # well under a decibel.
     data, _ = quick_inter
     (record,) = data["scenes"]
-    runs = record["passes"]["Camera View"]
-    assert runs["auto"]["inter"]["psnr"] > runs["auto, maps as built"]["inter"]["psnr"], runs
+    assert record["inter_pixels"] < 0.15 * record["subject_pixels"]
+    for method in data["addon_methods"]:
+        runs = record["passes"][method]
+        gain = runs["one pass, inter pixels exact"]["psnr"] - runs["one pass"]["psnr"]
+        assert 0.0 < gain < 1.0, (method, gain)
+        assert runs["auto"]["psnr"] - runs["one pass"]["psnr"] < gain + NOISE_DB
 
 
 def test_the_outputs_hold_the_table(quick_inter):
