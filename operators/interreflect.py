@@ -18,6 +18,9 @@ r = 2 the objects in each other, r = 3 those reflections again, and so on. Here,
   maps change, and a map is seen only on its object. (What the objects' new maps would change
   elsewhere -- their mirror images in other glossy virtual objects, the glow of a Replace-mode
   emission on the ground -- stays as the first pass rendered it.)
+- In pass k > 1 the other reflective objects are also placed in each map where they stand
+  (`_place_neighbours`): a map built from the composite alone puts a neighbour where the camera
+  saw it, near the view direction for the camera-view methods.
 - Later passes build each map with Generate itself, given the masked composite as the plate
   (``generate.generate(..., pixels=...)``): the same bounds, map size and settings as pass 1, so
   the engine's cached lookup table is found again, the map image is updated in place

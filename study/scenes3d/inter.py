@@ -2,14 +2,18 @@
 by side, path-traced with enough glossy bounces that each shows the others (and their
 reflections) in the truth; per add-on method, one pass (Generate, one render) against the
 paper's passes until converged (`operators/interreflect.py` `render_passes(..., "auto")`),
-both composited over the plate and scored on all the mirrors' pixels.
+with each map as Generate builds it from the composite (``neighbours=False``) and with the
+neighbours placed where they stand (the product's default), all composited over the plate.
 
-Per scene: the plate (no mirrors), the truth (every mirror in the full scene), the plate mean
-(the mirrors alone under a world of the 8-bit plate's mean colour: a baseline; they see each
-other there too, in that grey), then per method the two renders of the mirrors alone (ground
-and neighbours hidden, combine Replace: the chrome look; `render_passes` refuses World).
-Metrics as run.py: PSNR and SSIM of display values, si-RMSE of linear ones, on the mirrors'
-pixels (alpha > 0.5), SSIM over the box around all of them.
+Per scene: the plate (no mirrors), the truth (every mirror in the full scene), the truth with
+the mirrors blind to each other (``visible_glossy`` off: where the two differ are the "inter"
+pixels), the plate mean (the mirrors alone under a world of the 8-bit plate's mean colour: a
+baseline; they see each other there too, in that grey), then per method the three renders of
+the mirrors alone (ground and neighbours hidden, combine Replace: the chrome look;
+`render_passes` refuses World). Metrics as run.py (PSNR and SSIM of display values, si-RMSE of
+linear ones) on all the mirrors' pixels (alpha > 0.5), SSIM over the box around all of them;
+PSNR on the inter pixels; and the most the passes could gain: one pass with its inter pixels
+replaced by the truth's.
 """
 
 from __future__ import annotations
