@@ -14,7 +14,7 @@ import os
 import bpy
 import numpy as np
 
-from . import images
+from . import images, undo_pixels
 from .choices import addon_preferences
 
 KIND = "map"  # images.CREATED value of maps
@@ -97,6 +97,7 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     else:
         image[NEEDS_PACK] = True  # packed when the .blend is saved (pack_pending)
     image.update()
+    undo_pixels.remember(image, env)  # undo and redo bring these pixels back
     touch(image)
     return image
 
@@ -106,6 +107,7 @@ def show_pixels(image, env: np.ndarray):
     saves or packs it, comes later: live.py)."""
     images.write_pixels(image, env)
     image.update()
+    undo_pixels.remember(image, env, new=False)
     touch(image)
 
 

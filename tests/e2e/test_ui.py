@@ -60,3 +60,88 @@ def test_undo_after_generate(blender_gui, tmp_path):
     assert result["map_after_generate"] and result["link_after_generate"] == "OBJECT"
     assert not result["map_after_undo"] and result["slots_after_undo"] == 0, result
     assert result["map_after_redo"]
+
+
+REDO_SCRIPT = r"""
+import bpy, importlib.util, json, sys
+import numpy as np
+root, out = sys.argv[sys.argv.index("--") + 1 :][:2]
+spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
+                                              submodule_search_locations=[root])
+addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
+spec.loader.exec_module(addon); addon.register()
+result = {}
+
+def map_pixels():
+    image = bpy.data.images["VR Map Sphere"]
+    a = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(a)
+    return a.reshape(-1, 4)[:, :3]
+
+def render(name):
+    # The sphere fills the middle of a small Cycles render; its mean colour there.
+    scene = bpy.context.scene
+    scene.render.filepath = out + "/" + name + ".exr"
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath)
+    w, h = image.size
+    a = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(a)
+    a = a.reshape(h, w, 4)[h // 3 : 2 * h // 3, w // 3 : 2 * w // 3, :3]
+    bpy.data.images.remove(image)
+    return float(a.mean())
+
+def run():
+    try:
+        win = bpy.context.window_manager.windows[0]
+        with bpy.context.temp_override(window=win):
+            scene = bpy.context.scene  # the factory scene: its camera looks at the origin
+            bpy.data.objects.remove(bpy.data.objects["Cube"])
+            bpy.ops.mesh.primitive_uv_sphere_add(radius=1)
+            bpy.ops.object.select_all(action="DESELECT")
+            bpy.data.objects["Sphere"].select_set(True)
+            scene.render.engine = "CYCLES"
+            scene.cycles.samples = 4
+            scene.render.resolution_x, scene.render.resolution_y = 96, 54
+            scene.render.image_settings.file_format = "OPEN_EXR"
+            scene.virtual_reflections.plate_image = bpy.data.images.load(
+                root + "/sample_scenes/plates/courtyard.jpg")
+            scene.virtual_reflections.resolution = "256"
+            scene.virtual_reflections.combine = "REPLACE"
+            result["before"] = render("before")
+            bpy.ops.ed.undo_push(message="scene ready")
+            result["generate"] = sorted(bpy.ops.vr.generate("EXEC_DEFAULT", True))
+            generated = map_pixels()
+            result["map_max"] = float(generated.max())
+            result["generated"] = render("generated")
+            bpy.ops.ed.undo()
+            result["map_after_undo"] = "VR Map Sphere" in bpy.data.images
+            bpy.ops.ed.redo()
+            result["redo_map_diff"] = float(np.abs(map_pixels() - generated).max())
+            result["redone"] = render("redone")
+    except Exception as exc:
+        import traceback; traceback.print_exc()
+        result["error"] = repr(exc)
+    print("RESULT=" + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+
+bpy.app.timers.register(run, first_interval=0.5)
+"""
+
+
+def test_redo_brings_the_maps_pixels_back(blender_gui, tmp_path):
+    """Generate, Ctrl+Z, Ctrl+Shift+Z: the map has its pixels again and the sphere renders
+    as it did after Generate (it rendered black before: undo keeps no generated pixels)."""
+    script = tmp_path / "redo.py"
+    script.write_text(REDO_SCRIPT)
+    r = blender_gui(script, ROOT, tmp_path)
+    line = next((x for x in r.stdout.splitlines() if x.startswith("RESULT=")), None)
+    assert line, r.stdout[-3000:] + r.stderr[-3000:]
+    result = json.loads(line[len("RESULT=") :])
+    assert "error" not in result, result.get("error")
+    assert result["generate"] == ["FINISHED"] and result["map_max"] > 0.1, result
+    assert not result["map_after_undo"], result
+    assert result["redo_map_diff"] == 0.0, result  # the very pixels Generate wrote
+    # The sphere shows the map: not the plain render, and after redo as after Generate.
+    assert abs(result["generated"] - result["before"]) > 0.02, result
+    assert abs(result["redone"] - result["generated"]) < 0.05 * result["generated"], result
