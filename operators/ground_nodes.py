@@ -195,4 +195,3 @@ def mix_ground(nodes, links, position, direction, colour, ground, location):
         nodes, links, "SCALE", "Ground Share", (x + 550, y), step, lookup.outputs["Weight"]
     )
     return vector_math_node(nodes, links, "ADD", "Map And Ground", (x + 700, y), colour, step)
-

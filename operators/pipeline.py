@@ -251,11 +251,18 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
 
 def build_map(pixels, box, map_params, width, report, name=None):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
-    -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
-    comes from the engine's cache when the plate size, box, params and width were seen before
+    -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable): `map_table`
+    then `gather`."""
+    table = map_table(pixels.shape, box, map_params, width, report, name)
+    return gather(table, pixels, report), table
+
+
+def map_table(plate_shape, box, map_params, width, report, name=None):
+    """The engine's LookupTable of ``box`` (plate pixels) on a plate of ``plate_shape`` (H, W,
+    ...), from the engine's cache when the plate size, box, params and width were seen before
     (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
-    report's warnings (`fit_warnings`)."""
-    h, w = pixels.shape[:2]
+    report's warnings (`fit_warnings`). No bpy: may run off Blender's main thread."""
+    h, w = plate_shape[:2]
     with report.timed("table"):
         misses = lookup_table.cache_info().misses
         table = lookup_table(w, h, tuple(float(v) for v in box), map_params, "latlong", width)
@@ -263,9 +270,13 @@ def build_map(pixels, box, map_params, width, report, name=None):
     if name is not None:
         paper = map_params.method == "paper"
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
+    return table
+
+
+def gather(table, pixels, report):
+    """(width / 2, width, 3) float32 map: one gather of ``pixels`` through ``table``. No bpy."""
     with report.timed("gather"):
-        env = apply_table(table, pixels)
-    return env, table
+        return apply_table(table, pixels)
 
 
 def fit_warnings(name, seg, paper=True) -> list:

@@ -9,7 +9,7 @@ import textwrap
 
 import bpy
 
-from ..operators import live, maps, plate, previews, sequence, shading
+from ..operators import generate, live, maps, plate, previews, sequence, shading
 from . import presets
 
 
@@ -58,7 +58,11 @@ class VR_PT_main(_Tab, bpy.types.Panel):
 
         col = layout.column(align=True)
         col.scale_y = 1.4
-        col.operator("vr.generate", icon="MATSPHERE")
+        job = generate.running()
+        if job is not None:  # Generate under way: its stage and a bar (Esc stops it)
+            col.progress(factor=job.done, type="BAR", text=f"{job.stage}... (Esc to stop)")
+        else:
+            col.operator("vr.generate", icon="MATSPHERE")
         row = col.row(align=True)
         row.scale_y = 1 / 1.4
         row.operator("vr.remove", icon="X", text="Remove")
