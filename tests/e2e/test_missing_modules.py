@@ -45,6 +45,13 @@ out["enabled"] = name is not None
 out["panel"] = hasattr(bpy.types, "VR_PT_main")
 deps = importlib.import_module(name + ".dependencies")
 out["sentence"] = deps.missing_required()
+try:
+    import OpenImageIO  # noqa: F401
+    out["openimageio_hidden"] = False
+except ImportError:
+    out["openimageio_hidden"] = True
+out["detected"] = {m: deps.available(m) for m in ("numpy", "OpenImageIO")}
+out["oiio_sentence"] = deps.needs("OpenImageIO", "The batch")
 scene = bpy.context.scene
 cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
 scene.collection.objects.link(cam)
@@ -106,3 +113,16 @@ def test_without_numpy_it_enables_and_says_what_to_install(blender, package, tmp
     # The operators are there (F3, the menus) and report the sentence, nothing else.
     assert out["generate"] == f"Error: {sentence}", out["generate"]
     assert out["render_passes"] == f"Error: {sentence}", out["render_passes"]
+
+
+def test_without_openimageio_generate_and_inter_reflections_work(blender, package, tmp_path):
+    r, out = run_without(blender, package, tmp_path, ["OpenImageIO"])
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "Traceback" not in r.stdout + r.stderr, r.stdout[-3000:] + r.stderr[-3000:]
+    assert out["enabled"] and out["panel"] and out["sentence"] is None, out
+    assert out["generate"] == ["FINISHED"], out["generate"]
+    assert out["render_passes"] == ["FINISHED"], out["render_passes"]  # two passes, no OIIO
+    assert out["openimageio_hidden"], out
+    # Detected: the preferences say the batch command line needs it, and how to install it.
+    assert out["detected"] == {"numpy": True, "OpenImageIO": False}, out
+    assert out["oiio_sentence"].startswith("The batch needs OpenImageIO: install it"), out
