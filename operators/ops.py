@@ -20,14 +20,6 @@ def _poll_generate(cls, context):
     return reason is None
 
 
-def _done_line(report) -> str:
-    """The operator's plain report: who reflects now (the timings go to the panel)."""
-    names = report.done
-    if len(names) == 1:
-        return f"{names[0]} reflects the plate"
-    return f"{len(names)} objects reflect the plate"
-
-
 # Navigating the view is harmless while Generate runs; every other event waits for it.
 _NAVIGATION = {
     "MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "TRACKPADZOOM",
@@ -76,7 +68,7 @@ class VR_OT_generate(bpy.types.Operator):
         if not report.done:
             self.report({"ERROR"}, "No reflection generated: see the warnings")
             return {"CANCELLED"}
-        self.report({"INFO"}, _done_line(report))
+        self.report({"INFO"}, report.outcome())  # the timings: the panel
         return {"FINISHED"}
 
     def invoke(self, context, event):
@@ -160,8 +152,7 @@ class VR_OT_remove(bpy.types.Operator):
 
 
 class VR_OT_setup_plate(bpy.types.Operator):
-    """Match the render to the plate: resolution and pixel aspect, camera background,
-    transparent film, and the render composited over the plate"""
+    """Match the render to the plate: size, camera background, film, composited over it"""
 
     bl_idname = "vr.setup_plate"
     bl_label = "Set Up From Plate"
@@ -224,11 +215,14 @@ def show_composite(context, composite):
 
 
 class VR_OT_render_passes(bpy.types.Operator):
-    """Render the reflective objects reflecting each other (paper §3.3): each pass builds the
-    maps from the previous composite. The result goes to the image "VR Inter-Reflections\""""
+    """Render the reflective objects reflecting each other (paper §3.3)"""
 
     bl_idname = "vr.render_passes"
     bl_label = "Render Inter-Reflections"
+    bl_description = (
+        "Render the reflective objects reflecting each other (paper §3.3): each pass builds the "
+        f"maps from the previous composite, into the image '{COMPOSITE_IMAGE}'"
+    )
     bl_options = {"REGISTER", "UNDO"}
 
     passes: bpy.props.IntProperty(
@@ -289,8 +283,8 @@ class VR_OT_render_passes(bpy.types.Operator):
             f"{r.index}: {r.seconds:.1f} s, change {r.change:.4f}" for r in reports
         )
         summary = f"{len(reports)} pass(es) in {total:.1f} s ({per_pass}) -> '{COMPOSITE_IMAGE}'"
-        scene.virtual_reflections.last_report = summary
-        self.report({"INFO"}, summary)
+        scene.virtual_reflections.last_report = summary  # the details, for the panel
+        self.report({"INFO"}, f"Rendered {len(reports)} pass(es) into '{COMPOSITE_IMAGE}'")
         return {"FINISHED"}
 
 

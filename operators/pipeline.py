@@ -56,6 +56,12 @@ class Report:
         finally:
             self.time(stage, time.perf_counter() - started)
 
+    def outcome(self):
+        """The plain line for the status bar: who reflects now (no timings: `summary`)."""
+        if len(self.done) == 1:
+            return f"{self.done[0]} reflects the plate"
+        return f"{len(self.done)} objects reflect the plate"
+
     def summary(self):
         stages = ", ".join(f"{k} {1000 * v:.0f} ms" for k, v in self.timings.items())
         total = 1000 * sum(self.timings.values())
