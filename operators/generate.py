@@ -189,10 +189,15 @@ class Job:
     def done(self) -> float:
         return self.step.done
 
-    def advance(self):
-        """Do the next step, or look whether the thread has finished the step's work. Returns
-        the pipeline.Report once the run is over, else None."""
+    def advance(self, wait=0.05):
+        """Do the next step, or give the thread up to ``wait`` seconds to finish the step's
+        work. Returns the pipeline.Report once the run is over, else None.
+
+        The wait matters: Blender's main thread holds Python's lock while it draws and waits
+        for events, so a thread advances mostly while the main thread waits for it here
+        (without it, the run took 2-3x as long; docs/benchmarks.md)."""
         if self._thread is not None:
+            self._thread.join(wait)
             if self._thread.is_alive():
                 return None
             self._thread = None

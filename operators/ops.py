@@ -83,8 +83,9 @@ class VR_OT_generate(bpy.types.Operator):
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        self._shown = None  # the stage the panel shows
         wm = context.window_manager
-        self._timer = wm.event_timer_add(0.05, window=context.window)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
         wm.progress_begin(0, 100)
         wm.modal_handler_add(self)
         return {"RUNNING_MODAL"}
@@ -102,8 +103,10 @@ class VR_OT_generate(bpy.types.Operator):
             self._end(context)
             self.report({"ERROR"}, str(exc).strip().splitlines()[0] if str(exc) else repr(exc))
             return {"CANCELLED"}
-        context.window_manager.progress_update(int(100 * self._job.done))
-        _redraw_panels(context)
+        if self._job.stage != self._shown:  # redraw when there is something new to show
+            self._shown = self._job.stage
+            context.window_manager.progress_update(int(100 * self._job.done))
+            _redraw_panels(context)
         if report is None:
             return {"RUNNING_MODAL"}
         self._end(context)
@@ -121,9 +124,13 @@ class VR_OT_generate(bpy.types.Operator):
 
 
 def _redraw_panels(context):
+    """Redraw the sidebars (the panel's progress bar), not the views: a view redrawn in
+    software (a virtual display) costs as much as the work."""
     for area in context.screen.areas if context.screen else ():
         if area.type == "VIEW_3D":
-            area.tag_redraw()
+            for region in area.regions:
+                if region.type == "UI":
+                    region.tag_redraw()
 
 
 class VR_OT_remove(bpy.types.Operator):
