@@ -155,7 +155,15 @@ spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.p
 addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
 spec.loader.exec_module(addon); addon.register()
 generate = importlib.import_module("vr_ui_addon.operators.generate")
-result = {"stages": []}
+panel = importlib.import_module("vr_ui_addon.ui.panel")
+result = {"stages": [], "drawn_running": 0}
+draw = panel.VR_PT_main.draw
+
+def recording_draw(self, context):  # the panel drawn while Generate runs: its progress bar
+    draw(self, context)
+    result["drawn_running"] += generate.running() is not None
+
+panel.VR_PT_main.draw = recording_draw
 
 def snapshot():
     sphere = bpy.data.objects["Sphere"]
@@ -202,6 +210,11 @@ def after_cancel():
     result["running_after_esc"] = generate.running() is not None
     result["after_esc"] = snapshot()
     result["invoke"] = invoke()
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)  # drawn as it runs
     bpy.app.timers.register(guarded(watch), first_interval=0.01)
 
 def watch():
@@ -250,3 +263,5 @@ def test_generate_from_the_window_shows_its_stages_and_esc_stops_it(blender, tmp
     assert result["map"] and result["after_run"]["slots"][0][0] == "OBJECT", result
     assert result["report"].startswith("1 reflection(s)"), result["report"]
     assert result["after_undo"] == result["before"], result
+    assert result["drawn_running"] > 0, result
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]  # the panel drew every stage
