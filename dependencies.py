@@ -103,5 +103,29 @@ class VR_OT_render_passes(_Missing, bpy.types.Operator):
     bl_label = "Render Inter-Reflections"
 
 
-classes = (VR_PT_missing, VR_OT_generate, VR_OT_render_passes)
-register, unregister = bpy.utils.register_classes_factory(classes)
+class VR_MT_object(bpy.types.Menu):
+    bl_label = "Virtual Reflections"
+    bl_idname = "VR_MT_object"  # the same menu as when everything is there (ui/menus.py)
+
+    def draw(self, context):
+        self.layout.operator(VR_OT_generate.bl_idname, icon="ERROR")
+        self.layout.operator(VR_OT_render_passes.bl_idname, icon="ERROR")
+
+
+def _draw_in_object_menu(self, context):
+    self.layout.separator()
+    self.layout.menu(VR_MT_object.bl_idname)
+
+
+classes = (VR_PT_missing, VR_OT_generate, VR_OT_render_passes, VR_MT_object)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register()
+    bpy.types.VIEW3D_MT_object.append(_draw_in_object_menu)
+
+
+def unregister():
+    bpy.types.VIEW3D_MT_object.remove(_draw_in_object_menu)
+    _unregister()

@@ -43,6 +43,7 @@ out = {"addons": sorted(a.module for a in bpy.context.preferences.addons)}
 name = next((a for a in out["addons"] if a.endswith(".virtual_reflections")), None)
 out["enabled"] = name is not None
 out["panel"] = hasattr(bpy.types, "VR_PT_main")
+out["menu"] = hasattr(bpy.types, "VR_MT_object")
 deps = importlib.import_module(name + ".dependencies")
 out["sentence"] = deps.missing_required()
 try:
@@ -106,7 +107,7 @@ def test_without_numpy_it_enables_and_says_what_to_install(blender, package, tmp
     r, out = run_without(blender, package, tmp_path, ["numpy"])
     assert r.returncode == 0, r.stderr[-3000:]
     assert "Traceback" not in r.stdout + r.stderr, r.stdout[-3000:] + r.stderr[-3000:]
-    assert out["enabled"] and out["panel"], out
+    assert out["enabled"] and out["panel"] and out["menu"], out
     sentence = out["sentence"]
     assert sentence.startswith("Virtual Reflections needs NumPy: install it"), sentence
     assert "numpy" in sentence.split("(")[1], sentence  # the command names the package
