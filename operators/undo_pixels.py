@@ -61,9 +61,14 @@ def forget():
     _kept.clear()
 
 
+# Modes whose undo steps are their own (a mesh, a sculpt): they reload no image.
+OWN_UNDO = ("EDIT", "SCULPT", "PAINT", "PARTICLE")
+
+
 @bpy.app.handlers.persistent
 def _after_undo(*_args):
-    restore()
+    if not bpy.context.mode.startswith(OWN_UNDO):
+        restore()
 
 
 @bpy.app.handlers.persistent
