@@ -12,6 +12,7 @@ returns `DEFAULTS`, plain values with the same names, so nothing else needs to c
 import bpy
 from bpy.props import EnumProperty, IntProperty
 
+from . import dependencies
 from .operators import maps, shading
 from .operators.choices import (
     COMBINE_ITEMS,
@@ -22,6 +23,8 @@ from .operators.choices import (
     addon_preferences,
 )
 from .virtual_reflections import cache
+
+BATCH = "The batch command line (render_shot.py)"
 
 
 class VR_AddonPreferences(bpy.types.AddonPreferences):
@@ -79,6 +82,10 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         except ValueError as exc:
             where = str(exc)
         col.label(text=where, icon="FILE_FOLDER")
+        if not dependencies.available("OpenImageIO"):  # everything in Blender works without
+            row = layout.row()
+            row.alert = True
+            row.label(text=dependencies.needs("OpenImageIO", BATCH), icon="ERROR")
 
 
 def get(context=None):

@@ -182,6 +182,10 @@ def main(argv=None):
         previous = None
     try:
         addon, own = _addon()
+        for module in ("numpy", "OpenImageIO"):  # distributions' Blender may have neither
+            if not addon.dependencies.available(module):
+                _error(addon.dependencies.needs(module, "render_shot.py"))
+                return EXIT_BAD_INPUT
         options = batch_options(addon, args)
         with _batch(addon).stop_on_signals():
             return run(bpy, addon, own, options)

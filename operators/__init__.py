@@ -2,6 +2,7 @@
 (docs/architecture.md):
 
     choices, images, bounds                  -- no other module of the add-on
+    undo_pixels                              -- maps' pixels back after undo and redo
     plate, shading, maps, compositor         -- Blender data helpers
     pipeline                                 -- the one way a map is built
     generate, sequence, live, previews,      -- features
@@ -12,9 +13,9 @@
 Only modules with something to register are listed here, in that order.
 """
 
-from . import live, maps, ops, previews, sequence
+from . import live, maps, ops, previews, sequence, undo_pixels
 
-_modules = (maps, sequence, live, previews, ops)
+_modules = (undo_pixels, maps, sequence, live, previews, ops)
 
 
 def register():

@@ -5,6 +5,11 @@ Generate runs the map pipeline (pipeline.py) for each object, stores each map as
 (maps.py) and puts it on the object's material copies, or on a world (shading.py).
 """
 
+import functools
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import bpy
 
 from ..virtual_reflections.composite import union_box
@@ -40,6 +45,18 @@ def why_not_generate(context):
     return None
 
 
+@dataclass(frozen=True)
+class Step:
+    """One step of Generate (`steps`): ``stage`` says what runs now (the panel shows it),
+    ``done`` the share of the run done before it (0..1); ``work``, when given, is the step's
+    engine work: a bpy-free callable whose result the driver sends back into the steps, so
+    it may run off Blender's main thread while the window stays responsive (ops.py)."""
+
+    stage: str
+    done: float
+    work: Callable | None = None
+
+
 def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.Report:
     """Build each object's map from the plate and wire it in; returns a pipeline.Report.
 
@@ -50,9 +67,26 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
     Raises ValueError (one line) when nothing can be done: no camera, no or bad plate.
     Per-object problems (off-screen, linked data, no geometry) become warnings.
     """
+    run = steps(scene, depsgraph, objects, pixels)
+    total = 2 * len(objects)
+    try:
+        step = next(run)
+        while True:
+            if progress:
+                progress(step.done * total)
+            step = run.send(step.work() if step.work else None)
+    except StopIteration as finished:
+        return finished.value
+
+
+def steps(scene, depsgraph, objects, pixels=None):
+    """Generate as a generator of `Step`s (same arguments as `generate`), returning the
+    pipeline.Report. Nothing in the scene changes before the last step ("Writing the maps"),
+    so a run stopped between steps leaves the scene as it was."""
     settings = scene.virtual_reflections
     report = pipeline.Report()
     image = plate.require_plate(scene)
+    yield Step("Reading the plate", 0.0)
     with report.timed("plate"):
         if pixels is None:
             pixels, report.plate = plate.pixels(scene, image)
@@ -63,21 +97,46 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
     save_dir = maps.save_folder(settings)
     view = pipeline.view(scene, pixels.shape, depsgraph)
     report.warnings += view.warnings(settings)
-    step = (lambda i: progress(i + 0.5)) if progress else None
-    with report.timed("bounds"):
-        boxes, extents, problems = pipeline.object_boxes(
-            view, scene, depsgraph, objects, progress=step
-        )
+    yield Step("Measuring the objects", 0.05)
+    boxes, extents, problems = pipeline.object_boxes(view, scene, depsgraph, objects)
     report.warnings += problems
     widths = {obj: map_width(settings.resolution, extents[obj]) for obj in boxes}
 
+    # The maps to build: one shared world map, or one per object.
+    jobs = []  # (name for the warnings, object or None, box, Params, width, roughness)
     if settings.combine == "WORLD" and boxes:
         # One shared, camera-aligned world map from the union of the objects' bounds.
-        box = union_box(boxes.values())
         shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
-        env, _ = pipeline.build_map(pixels, box, shared, max(widths.values()), report, "World")
+        jobs.append(("World", None, union_box(boxes.values()), shared, max(widths.values()), 0))
+    for obj, box in boxes.items() if not jobs else ():
+        if obj.library is not None or obj.override_library is not None:
+            report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
+            continue
+        own = pipeline.map_params(view, scene, depsgraph, [obj])
+        rough = pipeline.map_roughness(scene, [obj])
+        jobs.append((obj.name, obj, box, own, widths[obj], rough))
+    envs = []
+    for i, (name, _, box, params, width, rough) in enumerate(jobs):
+        share = 0.1 + 0.85 * i / len(jobs)
+        table = yield Step(
+            f"Building the table ({name})",
+            share,
+            functools.partial(pipeline.map_table, pixels.shape, box, params, width, report, name),
+        )
+        envs.append(
+            (
+                yield Step(
+                    f"Gathering ({name})",
+                    share + 0.6 * 0.85 / len(jobs),
+                    functools.partial(pipeline.gather, table, pixels, report, rough),
+                )
+            )
+        )
+    yield Step("Writing the maps", 0.95)
+
+    if settings.combine == "WORLD" and jobs:
         with report.timed("image"):
-            world_map = maps.store_map(maps.WORLD_MAP, env, save_dir)
+            world_map = maps.store_map(maps.WORLD_MAP, envs[0], save_dir)
         with report.timed("wiring"):
             for obj in boxes:
                 try:
@@ -90,13 +149,7 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         remove_orphans()
         return report
 
-    for i, (obj, box) in enumerate(boxes.items()):
-        if obj.library is not None or obj.override_library is not None:
-            report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
-            continue
-        own = pipeline.map_params(view, scene, depsgraph, [obj])
-        rough = pipeline.map_roughness(scene, [obj])
-        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name, rough)
+    for (_, obj, box, _, _, _), env in zip(jobs, envs, strict=True):
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):
@@ -112,10 +165,85 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
                 continue
         obj.virtual_reflections.bounds = box
         report.done.append(obj.name)
-        if progress:
-            progress(len(objects) + i + 1)
     remove_orphans()
     return report
+
+
+class Job:
+    """A Generate run from Blender's window (ops.py), one `Step` per `advance`: the steps
+    that touch Blender on the main thread, their engine work in a thread, so the window keeps
+    drawing. ValueError (one line) as `generate`, when it is made or from `advance`."""
+
+    def __init__(self, scene, depsgraph, objects):
+        global _running
+        self._steps = steps(scene, depsgraph, objects)
+        self.step = next(self._steps)
+        self._thread = None
+        self._outcome = None  # (result, exception) of the work in the thread
+        _running = self
+
+    @property
+    def stage(self) -> str:
+        return self.step.stage
+
+    @property
+    def done(self) -> float:
+        return self.step.done
+
+    def advance(self, wait=0.05):
+        """Do the next step, or give the thread up to ``wait`` seconds to finish the step's
+        work. Returns the pipeline.Report once the run is over, else None.
+
+        The wait matters: Blender's main thread holds Python's lock while it draws and waits
+        for events, so a thread advances mostly while the main thread waits for it here
+        (without it, the run took 2-3x as long; docs/benchmarks.md)."""
+        if self._thread is not None:
+            self._thread.join(wait)
+            if self._thread.is_alive():
+                return None
+            self._thread = None
+            value, error = self._outcome
+            if error is not None:
+                self.stop()
+                raise error
+        elif self.step.work is not None:
+            self._thread = threading.Thread(target=self._work, args=(self.step.work,))
+            self._thread.daemon = True  # Blender may quit meanwhile
+            self._thread.start()
+            return None
+        else:
+            value = None
+        try:
+            self.step = self._steps.send(value)
+        except StopIteration as finished:
+            self.stop()
+            return finished.value
+        except BaseException:
+            self.stop()
+            raise
+        return None
+
+    def _work(self, work):
+        try:
+            self._outcome = (work(), None)
+        except Exception as exc:  # handed to the main thread by `advance`
+            self._outcome = (None, exc)
+
+    def stop(self):
+        """End the run where it is (a thread still working finishes for nothing): the scene
+        changes only in the last step, so it is as it was."""
+        global _running
+        self._steps.close()
+        if _running is self:
+            _running = None
+
+
+_running = None  # the Job under way in the window, for the panel
+
+
+def running() -> Job | None:
+    """The Generate run under way in the window, or None (the panel shows its stage)."""
+    return _running
 
 
 def remove_orphans() -> int:

@@ -35,11 +35,11 @@ module returns are at the render's size, over the plate scaled down (nearest), a
 entry composites. Everything is scene-linear Rec.709 float32.
 
 Rendering: the render is written as a multilayer EXR (Combined and the object index of the
-depsgraph's view layer) into a temporary folder and read with the engine's reader
-(OpenImageIO, bundled with Blender). Everything changed for that -- output format and path,
-border, compositing, film, persistent data (the bpy 4.5 module's Cycles does not see map
-updates with it), the object index pass, the objects' pass indices, Update Every Frame -- is
-restored afterwards, also on errors.
+depsgraph's view layer), uncompressed, into a temporary folder and read with NumPy alone
+(the engine's plainexr.py: no OpenImageIO, which some Blender packages lack). Everything
+changed for that -- output format and path, border, compositing, film, persistent data (the
+bpy 4.5 module's Cycles does not see map updates with it), the object index pass, the
+objects' pass indices, Update Every Frame -- is restored afterwards, also on errors.
 """
 
 import contextlib
@@ -53,8 +53,8 @@ import bpy
 import numpy as np
 
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
-from ..virtual_reflections.imagefiles import read_channels
 from ..virtual_reflections.layouts import latlong_directions
+from ..virtual_reflections.plainexr import read_channels
 from . import bounds, generate, images, maps, shading
 from .plate import NO_PLATE, scene_plate
 

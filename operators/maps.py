@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 
 from ..virtual_reflections.imagefiles import ImageError, write_map
-from . import images
+from . import images, undo_pixels
 from .choices import addon_preferences
 
 KIND = "map"  # images.CREATED value of maps
@@ -107,6 +107,7 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     else:
         image[NEEDS_PACK] = True  # packed when the .blend is saved (pack_pending)
     image.update()
+    undo_pixels.remember(image, env)  # undo and redo bring these pixels back
     touch(image)
     return image
 
@@ -156,6 +157,7 @@ def show_pixels(image, env: np.ndarray):
     saves or packs it, comes later: live.py)."""
     images.write_pixels(image, env)
     image.update()
+    undo_pixels.remember(image, env, new=False)
     touch(image)
 
 

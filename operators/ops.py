@@ -20,12 +20,22 @@ def _poll_generate(cls, context):
     return reason is None
 
 
+# Navigating the view is harmless while Generate runs; every other event waits for it.
+_NAVIGATION = {
+    "MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "TRACKPADZOOM",
+    "MOUSEROTATE", "MOUSEMOVE", "INBETWEEN_MOUSEMOVE", "NDOF_MOTION", "TIMER",
+}  # fmt: skip
+
+
 class VR_OT_generate(bpy.types.Operator):
-    """Build each selected (or marked) object's environment map from the plate and make it
-    reflect it"""
+    """Build each selected (or marked) object's environment map and make it reflect it"""
 
     bl_idname = "vr.generate"
     bl_label = "Generate Virtual Reflection"
+    bl_description = (
+        "Build each selected (or marked) object's environment map from the plate and make it "
+        "reflect it (Esc stops it)"
+    )
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
@@ -33,6 +43,7 @@ class VR_OT_generate(bpy.types.Operator):
         return _poll_generate(cls, context)
 
     def execute(self, context):
+        """The blocking run: scripts, `blender -b`, the batch (EXEC_DEFAULT)."""
         objects = generate.candidates(context)
         wm = context.window_manager
         wm.progress_begin(0, 2 * len(objects))
@@ -48,14 +59,78 @@ class VR_OT_generate(bpy.types.Operator):
             return {"CANCELLED"}
         finally:
             wm.progress_end()
+        return self._finish(context, report)
+
+    def _finish(self, context, report):
         for warning in report.warnings:
             self.report({"WARNING"}, warning)
         context.scene.virtual_reflections.last_report = report.summary()
         if not report.done:
             self.report({"ERROR"}, "No reflection generated: see the warnings")
             return {"CANCELLED"}
-        self.report({"INFO"}, report.summary())
+        self.report({"INFO"}, report.outcome())  # the timings: the panel
         return {"FINISHED"}
+
+    def invoke(self, context, event):
+        """From the window: step by step, the engine's work in a thread, with a progress bar
+        (the panel's and the cursor's); Esc stops it and leaves the scene as it was."""
+        if context.window is None or bpy.app.background:
+            return self.execute(context)
+        try:
+            self._job = generate.Job(
+                context.scene, context.evaluated_depsgraph_get(), generate.candidates(context)
+            )
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._shown = None  # the stage the panel shows
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._end(context)
+            self.report({"INFO"}, "Generate cancelled: nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
+        try:
+            report = self._job.advance()
+        except Exception as exc:  # ValueError: bad input; else a bug, one line all the same
+            self._end(context)
+            self.report({"ERROR"}, str(exc).strip().splitlines()[0] if str(exc) else repr(exc))
+            return {"CANCELLED"}
+        if self._job.stage != self._shown:  # redraw when there is something new to show
+            self._shown = self._job.stage
+            context.window_manager.progress_update(int(100 * self._job.done))
+            _redraw_panels(context)
+        if report is None:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        return self._finish(context, report)
+
+    def cancel(self, context):  # Blender closes the window or loads a file meanwhile
+        self._end(context)
+
+    def _end(self, context):
+        self._job.stop()
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        _redraw_panels(context)
+
+
+def _redraw_panels(context):
+    """Redraw the sidebars (the panel's progress bar), not the views: a view redrawn in
+    software (a virtual display) costs as much as the work."""
+    for area in context.screen.areas if context.screen else ():
+        if area.type == "VIEW_3D":
+            for region in area.regions:
+                if region.type == "UI":
+                    region.tag_redraw()
 
 
 class VR_OT_remove(bpy.types.Operator):
@@ -84,8 +159,7 @@ class VR_OT_remove(bpy.types.Operator):
 
 
 class VR_OT_setup_plate(bpy.types.Operator):
-    """Match the render to the plate: resolution and pixel aspect, camera background,
-    transparent film, and the render composited over the plate"""
+    """Match the render to the plate: size, camera background, film, composited over it"""
 
     bl_idname = "vr.setup_plate"
     bl_label = "Set Up From Plate"
@@ -148,11 +222,14 @@ def show_composite(context, composite):
 
 
 class VR_OT_render_passes(bpy.types.Operator):
-    """Render the reflective objects reflecting each other (paper §3.3): each pass builds the
-    maps from the previous composite. The result goes to the image "VR Inter-Reflections\""""
+    """Render the reflective objects reflecting each other (paper §3.3)"""
 
     bl_idname = "vr.render_passes"
     bl_label = "Render Inter-Reflections"
+    bl_description = (
+        "Render the reflective objects reflecting each other (paper §3.3): each pass builds the "
+        f"maps from the previous composite, into the image '{COMPOSITE_IMAGE}'"
+    )
     bl_options = {"REGISTER", "UNDO"}
 
     passes: bpy.props.IntProperty(
@@ -213,8 +290,8 @@ class VR_OT_render_passes(bpy.types.Operator):
             f"{r.index}: {r.seconds:.1f} s, change {r.change:.4f}" for r in reports
         )
         summary = f"{len(reports)} pass(es) in {total:.1f} s ({per_pass}) -> '{COMPOSITE_IMAGE}'"
-        scene.virtual_reflections.last_report = summary
-        self.report({"INFO"}, summary)
+        scene.virtual_reflections.last_report = summary  # the details, for the panel
+        self.report({"INFO"}, f"Rendered {len(reports)} pass(es) into '{COMPOSITE_IMAGE}'")
         return {"FINISHED"}
 
 

@@ -63,6 +63,12 @@ class Report:
         total = 1000 * sum(self.timings.values())
         return f"{len(self.done)} reflection(s) in {total:.0f} ms ({stages})"
 
+    def outcome(self):
+        """The plain line for the status bar: who reflects now (no timings: `summary`)."""
+        if len(self.done) == 1:
+            return f"{self.done[0]} reflects the plate"
+        return f"{len(self.done)} objects reflect the plate"
+
 
 MIN_HEIGHT = 1e-3  # scene units: an object's centre at least this far above the ground
 
@@ -271,12 +277,18 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
 
 def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
-    -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
-    comes from the engine's cache when the plate size, box, params and width were seen before
+    -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable): `map_table`
+    then `gather`."""
+    table = map_table(pixels.shape, box, map_params, width, report, name)
+    return gather(table, pixels, report, roughness), table
+
+
+def map_table(plate_shape, box, map_params, width, report, name=None):
+    """The engine's LookupTable of ``box`` (plate pixels) on a plate of ``plate_shape`` (H, W,
+    ...), from the engine's cache when the plate size, box, params and width were seen before
     (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
-    report's warnings (`fit_warnings`). A ``roughness`` over prefilter.SHARP pre-filters the
-    map for it (`map_roughness`)."""
-    h, w = pixels.shape[:2]
+    report's warnings (`fit_warnings`). No bpy: may run off Blender's main thread."""
+    h, w = plate_shape[:2]
     with report.timed("table"):
         misses = lookup_table.cache_info().misses
         table = lookup_table(w, h, tuple(float(v) for v in box), map_params, "latlong", width)
@@ -284,12 +296,18 @@ def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0):
     if name is not None:
         paper = map_params.method == "paper"
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
+    return table
+
+
+def gather(table, pixels, report, roughness=0.0):
+    """(width / 2, width, 3) float32 map: one gather of ``pixels`` through ``table``, and a
+    ``roughness`` over prefilter.SHARP pre-filters it for that (`map_roughness`). No bpy."""
     with report.timed("gather"):
         env = apply_table(table, pixels)
     if roughness > 0:
         with report.timed("prefilter"):
             env = prefilter_latlong(env, roughness)
-    return env, table
+    return env
 
 
 def fit_warnings(name, seg, paper=True) -> list:

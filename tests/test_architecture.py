@@ -31,14 +31,15 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 # Top-level names of the product: the root package "" is its __init__.py.
-PRODUCT = ("", "preferences", "operators", "ui", "virtual_reflections")
+PRODUCT = ("", "dependencies", "preferences", "operators", "ui", "virtual_reflections")
 RESEARCH = ("study", "benchmarks", "tests")
 ENGINE = "virtual_reflections"
 BLENDER_ONLY = (
     "bpy", "bpy_extras", "bpy_types", "bmesh", "mathutils", "gpu", "gpu_extras", "blf",
     "bl_math", "bl_ui", "bl_operators", "idprop", "aud", "freestyle",
 )  # fmt: skip
-NOT_IN_ENGINE = ("operators", "ui", "preferences", "")  # "": the add-on's root __init__.py
+# "": the add-on's root __init__.py
+NOT_IN_ENGINE = ("operators", "ui", "preferences", "dependencies", "")
 SKIP_DIRS = {"__pycache__", "node_modules"}
 
 
@@ -355,7 +356,7 @@ def repo_problems():
 
 def test_the_checker_sees_the_whole_extension():
     modules = discover(REPO)
-    for name in ("", "preferences", "operators", "ui", "virtual_reflections"):
+    for name in ("", "dependencies", "preferences", "operators", "ui", "virtual_reflections"):
         assert name in modules, f"{name or '__init__'} not found"
     for package in ("operators", "ui", "virtual_reflections"):
         assert any(m.startswith(package + ".") for m in modules), f"no modules in {package}/"

@@ -1,8 +1,8 @@
-"""Panels and properties of the N-panel tab."""
+"""Panels and properties of the N-panel tab, and the Object menu's entry."""
 
-from . import panel, presets, properties
+from . import menus, panel, presets, properties
 
-_modules = (properties, presets, panel)
+_modules = (properties, presets, panel, menus)
 
 
 def register():

@@ -9,7 +9,7 @@ import textwrap
 
 import bpy
 
-from ..operators import live, maps, plate, previews, sequence, shading
+from ..operators import generate, live, maps, plate, previews, sequence, shading
 from . import presets
 
 
@@ -42,10 +42,12 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         box.template_ID(settings, "plate_image", open="image.open")
         if settings.plate_image is None:
             image = plate.scene_plate(scene)
-            box.label(
-                text=f"Using camera background: {image.name}"
+            _wrapped(
+                box,
+                f"Using camera background: {image.name}"
                 if image
                 else "No plate: open one or give the camera a background image",
+                context,
                 icon="INFO",
             )
         row = box.row(align=True)
@@ -58,7 +60,11 @@ class VR_PT_main(_Tab, bpy.types.Panel):
 
         col = layout.column(align=True)
         col.scale_y = 1.4
-        col.operator("vr.generate", icon="MATSPHERE")
+        job = generate.running()
+        if job is not None:  # Generate under way: its stage and a bar (Esc stops it)
+            col.progress(factor=job.done, type="BAR", text=f"{job.stage}... (Esc to stop)")
+        else:
+            col.operator("vr.generate", icon="MATSPHERE")
         row = col.row(align=True)
         row.scale_y = 1 / 1.4
         row.operator("vr.remove", icon="X", text="Remove")
@@ -71,7 +77,7 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         if not line and settings.last_report:  # "n reflection(s) in t ms (stages)": the gist
             line = settings.last_report.split(" (")[0]
         if line:
-            layout.label(text=line, icon="TIME")
+            _wrapped(layout, line, context, icon="TIME")
 
 
 class VR_PT_object(_Tab, bpy.types.Panel):
@@ -186,7 +192,7 @@ class VR_PT_output(_Tab, bpy.types.Panel):
                 where = maps.maps_folder(create=False)
             except ValueError as exc:
                 where = str(exc)
-            col.label(text=where, icon="FILE_FOLDER")
+            _wrapped(col, where, context, icon="FILE_FOLDER")
         col.prop(settings, "sequence", text="Update Every Frame")
         sub = col.column()
         sub.active = settings.sequence

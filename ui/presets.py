@@ -51,8 +51,7 @@ def apply(settings, name):
 
 
 class VR_OT_apply_preset(bpy.types.Operator):
-    """Set the combine mode and its settings for a look; objects that already reflect the plate
-    are generated again"""
+    """Set the combine mode and its settings for a look; reflecting objects are generated again"""
 
     bl_idname = "vr.apply_preset"
     bl_label = "Reflection Preset"
@@ -92,7 +91,7 @@ class VR_OT_apply_preset(bpy.types.Operator):
         for warning in report.warnings:
             self.report({"WARNING"}, warning)
         settings.last_report = report.summary()
-        self.report({"INFO"}, f"{label}: {report.summary()}")
+        self.report({"INFO"}, f"{label}: {report.outcome()}")
         return {"FINISHED"}
 
 

@@ -72,6 +72,7 @@ def test_the_zip_holds_the_extension_and_the_engine(names):
     for name in (
         "__init__.py",
         "blender_manifest.toml",
+        "dependencies.py",
         "preferences.py",
         "render_shot.py",
         "operators/__init__.py",

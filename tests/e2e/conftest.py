@@ -6,6 +6,7 @@ with the reason when none is found."""
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -44,14 +45,24 @@ def blender():
         pytest.skip(why)
 
     def run(*args, env=None, cwd=None, timeout=600, wrap=()):
-        return subprocess.run(
+        # In a session of its own, so that a timeout ends Blender and Xvfb too, not only
+        # the wrapper (xvfb-run, the chroot tool) that started them.
+        with subprocess.Popen(
             [*wrap, *command, *map(str, args)],
-            capture_output=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
             text=True,
             env={**os.environ, **(env or {})},
             cwd=cwd or ROOT,
-            timeout=timeout,
-        )
+            start_new_session=True,
+        ) as process:
+            try:
+                stdout, stderr = process.communicate(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.communicate()
+                raise
+        return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
 
     return run
 

@@ -60,3 +60,208 @@ def test_undo_after_generate(blender_gui, tmp_path):
     assert result["map_after_generate"] and result["link_after_generate"] == "OBJECT"
     assert not result["map_after_undo"] and result["slots_after_undo"] == 0, result
     assert result["map_after_redo"]
+
+
+REDO_SCRIPT = r"""
+import bpy, importlib.util, json, sys
+import numpy as np
+root, out = sys.argv[sys.argv.index("--") + 1 :][:2]
+spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
+                                              submodule_search_locations=[root])
+addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
+spec.loader.exec_module(addon); addon.register()
+result = {}
+
+def map_pixels():
+    image = bpy.data.images["VR Map Sphere"]
+    a = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(a)
+    return a.reshape(-1, 4)[:, :3]
+
+def render(name):
+    # The sphere fills the middle of a small Cycles render; its mean colour there.
+    scene = bpy.context.scene
+    scene.render.filepath = out + "/" + name + ".exr"
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(scene.render.filepath)
+    w, h = image.size
+    a = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(a)
+    a = a.reshape(h, w, 4)[h // 3 : 2 * h // 3, w // 3 : 2 * w // 3, :3]
+    bpy.data.images.remove(image)
+    return float(a.mean())
+
+def run():
+    try:
+        win = bpy.context.window_manager.windows[0]
+        with bpy.context.temp_override(window=win):
+            scene = bpy.context.scene  # the factory scene: its camera looks at the origin
+            bpy.data.objects.remove(bpy.data.objects["Cube"])
+            bpy.ops.mesh.primitive_uv_sphere_add(radius=1)
+            bpy.ops.object.select_all(action="DESELECT")
+            bpy.data.objects["Sphere"].select_set(True)
+            scene.render.engine = "CYCLES"
+            scene.cycles.samples = 4
+            scene.render.resolution_x, scene.render.resolution_y = 96, 54
+            scene.render.image_settings.file_format = "OPEN_EXR"
+            scene.virtual_reflections.plate_image = bpy.data.images.load(
+                root + "/sample_scenes/plates/courtyard.jpg")
+            scene.virtual_reflections.resolution = "256"
+            scene.virtual_reflections.combine = "REPLACE"
+            result["before"] = render("before")
+            bpy.ops.ed.undo_push(message="scene ready")
+            result["generate"] = sorted(bpy.ops.vr.generate("EXEC_DEFAULT", True))
+            generated = map_pixels()
+            result["map_max"] = float(generated.max())
+            result["generated"] = render("generated")
+            bpy.ops.ed.undo()
+            result["map_after_undo"] = "VR Map Sphere" in bpy.data.images
+            bpy.ops.ed.redo()
+            result["redo_map_diff"] = float(np.abs(map_pixels() - generated).max())
+            result["redone"] = render("redone")
+    except Exception as exc:
+        import traceback; traceback.print_exc()
+        result["error"] = repr(exc)
+    print("RESULT=" + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+
+bpy.app.timers.register(run, first_interval=0.5)
+"""
+
+
+def test_redo_brings_the_maps_pixels_back(blender_gui, tmp_path):
+    """Generate, Ctrl+Z, Ctrl+Shift+Z: the map has its pixels again and the sphere renders
+    as it did after Generate (it rendered black before: undo keeps no generated pixels)."""
+    script = tmp_path / "redo.py"
+    script.write_text(REDO_SCRIPT)
+    r = blender_gui(script, ROOT, tmp_path)
+    line = next((x for x in r.stdout.splitlines() if x.startswith("RESULT=")), None)
+    assert line, r.stdout[-3000:] + r.stderr[-3000:]
+    result = json.loads(line[len("RESULT=") :])
+    assert "error" not in result, result.get("error")
+    assert result["generate"] == ["FINISHED"] and result["map_max"] > 0.1, result
+    assert not result["map_after_undo"], result
+    assert result["redo_map_diff"] == 0.0, result  # the very pixels Generate wrote
+    # The sphere shows the map: not the plain render, and after redo as after Generate.
+    assert abs(result["generated"] - result["before"]) > 0.02, result
+    assert abs(result["redone"] - result["generated"]) < 0.05 * result["generated"], result
+
+
+MODAL_SCRIPT = r"""
+import bpy, importlib, importlib.util, json, sys
+root = sys.argv[sys.argv.index("--") + 1]
+spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
+                                              submodule_search_locations=[root])
+addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
+spec.loader.exec_module(addon); addon.register()
+generate = importlib.import_module("vr_ui_addon.operators.generate")
+panel = importlib.import_module("vr_ui_addon.ui.panel")
+result = {"stages": [], "drawn_running": 0}
+draw = panel.VR_PT_main.draw
+
+def recording_draw(self, context):  # the panel drawn while Generate runs: its progress bar
+    draw(self, context)
+    result["drawn_running"] += generate.running() is not None
+
+panel.VR_PT_main.draw = recording_draw
+
+def snapshot():
+    sphere = bpy.data.objects["Sphere"]
+    return {
+        "images": sorted(i.name for i in bpy.data.images),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "groups": sorted(g.name for g in bpy.data.node_groups),
+        "slots": [(s.link, s.material and s.material.name) for s in sphere.material_slots],
+    }
+
+def invoke():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    with bpy.context.temp_override(window=win, area=area):
+        return sorted(bpy.ops.vr.generate("INVOKE_DEFAULT"))
+
+def setup():
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1)
+    bpy.ops.object.select_all(action="DESELECT")
+    bpy.data.objects["Sphere"].select_set(True)
+    scene.virtual_reflections.plate_image = bpy.data.images.load(
+        root + "/sample_scenes/plates/courtyard.jpg")
+    scene.virtual_reflections.resolution = "1024"
+    bpy.ops.ed.undo_push(message="scene ready")
+    result["before"] = snapshot()
+    # Esc right away: the run stops before it changes anything.
+    result["cancel_invoke"] = invoke()
+    result["running_after_invoke"] = generate.running() is not None
+    bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
+    bpy.app.timers.register(guarded(after_cancel), first_interval=1.0)
+
+def guarded(step):
+    def run():
+        try:
+            return step()
+        except Exception as exc:
+            import traceback; traceback.print_exc()
+            print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
+            bpy.ops.wm.quit_blender()
+    return run
+
+def after_cancel():
+    result["running_after_esc"] = generate.running() is not None
+    result["after_esc"] = snapshot()
+    result["invoke"] = invoke()
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)  # drawn as it runs
+    bpy.app.timers.register(guarded(watch), first_interval=0.01)
+
+def watch():
+    job = generate.running()
+    if job is not None:
+        if not result["stages"] or result["stages"][-1] != job.stage:
+            result["stages"].append(job.stage)
+        return 0.005
+    result["after_run"] = snapshot()
+    result["map"] = "VR Map Sphere" in bpy.data.images
+    result["report"] = bpy.context.scene.virtual_reflections.last_report
+    bpy.ops.ed.undo()  # the finished run is one undo step
+    result["after_undo"] = snapshot()
+    print("RESULT=" + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+
+bpy.app.timers.register(guarded(setup), first_interval=0.5)
+"""
+
+
+def test_generate_from_the_window_shows_its_stages_and_esc_stops_it(blender, tmp_path):
+    """The button's Generate (INVOKE_DEFAULT) runs step by step with the window drawing: the
+    stages follow each other, Esc stops it with the scene as before, and a finished run is
+    one undo step."""
+    import shutil
+
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("xvfb-run is not installed (apt-get install xvfb)")
+    script = tmp_path / "modal.py"
+    script.write_text(MODAL_SCRIPT)
+    r = blender(
+        "--factory-startup", "--enable-event-simulate", "--python", script, "--", ROOT,
+        timeout=120, wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
+    )  # fmt: skip
+    line = next((x for x in r.stdout.splitlines() if x.startswith("RESULT=")), None)
+    assert line, r.stdout[-3000:] + r.stderr[-3000:]
+    result = json.loads(line[len("RESULT=") :])
+    assert "error" not in result, result.get("error")
+    assert result["cancel_invoke"] == ["RUNNING_MODAL"] and result["running_after_invoke"]
+    assert not result["running_after_esc"]
+    assert result["after_esc"] == result["before"], result  # nothing attached or made
+    assert result["invoke"] == ["RUNNING_MODAL"]
+    stages = result["stages"]
+    wanted = ["Building the table (Sphere)", "Gathering (Sphere)", "Writing the maps"]
+    assert [s for s in stages if s in wanted] == wanted, stages  # in order, each seen
+    assert result["map"] and result["after_run"]["slots"][0][0] == "OBJECT", result
+    assert result["report"].startswith("1 reflection(s)"), result["report"]
+    assert result["after_undo"] == result["before"], result
+    assert result["drawn_running"] > 0, result
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]  # the panel drew every stage

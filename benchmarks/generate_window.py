@@ -1,0 +1,103 @@
+"""How long Generate holds Blender's window on a 4K plate: the blocking run (a script's
+EXEC_DEFAULT, as before) against the run from the button (INVOKE_DEFAULT: steps on a timer,
+the engine's work in a thread). A timer ticking every 10 ms measures the longest gap between
+two ticks, i.e. the longest time the window could not draw.
+
+    xvfb-run -a blender --factory-startup --python benchmarks/generate_window.py -- .
+
+Prints one line per run; the figures are in docs/benchmarks.md."""
+
+import importlib
+import importlib.util
+import json
+import sys
+import time
+
+import bpy
+import numpy as np
+
+root = sys.argv[sys.argv.index("--") + 1]
+spec = importlib.util.spec_from_file_location(
+    "vr_bench_addon", root + "/__init__.py", submodule_search_locations=[root]
+)
+addon = importlib.util.module_from_spec(spec)
+sys.modules[spec.name] = addon
+spec.loader.exec_module(addon)
+addon.register()
+generate = importlib.import_module("vr_bench_addon.operators.generate")
+lookup_table = importlib.import_module("vr_bench_addon.virtual_reflections").lookup_table
+
+ticks = []
+results = {}
+
+
+stages = []  # (time, the stage under way) at each tick
+
+
+def tick():
+    ticks.append(time.perf_counter())
+    job = generate.running()
+    stages.append((ticks[-1], job.stage if job else None))
+    return 0.01
+
+
+def context():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    return bpy.context.temp_override(window=win, area=area)
+
+
+def setup():
+    scene = bpy.context.scene
+    bpy.data.objects.remove(bpy.data.objects["Cube"])
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1)
+    bpy.data.objects["Sphere"].select_set(True)
+    plate = bpy.data.images.new("Plate 4K", 3840, 2160)
+    rng = np.random.default_rng(0)
+    plate.pixels.foreach_set(rng.random(3840 * 2160 * 4, dtype=np.float32))
+    scene.virtual_reflections.plate_image = plate
+    scene.virtual_reflections.resolution = "4096"
+    scene.render.resolution_x, scene.render.resolution_y = 3840, 2160
+    bpy.app.timers.register(tick, first_interval=0.01)
+    bpy.app.timers.register(blocking, first_interval=0.5)
+
+
+def longest_gap(since):
+    t = [x for x in ticks if x >= since]
+    return max(np.diff(t)) if len(t) > 1 else float("nan")
+
+
+def blocking():
+    lookup_table.cache_clear()
+    started = time.perf_counter()
+    with context():
+        bpy.ops.vr.generate("EXEC_DEFAULT")
+    results["blocking_total_s"] = time.perf_counter() - started
+    bpy.ops.vr.remove()
+    bpy.app.timers.register(lambda: measure_blocking(started), first_interval=0.1)
+
+
+def measure_blocking(started):
+    results["blocking_longest_gap_s"] = longest_gap(started - 0.02)
+    lookup_table.cache_clear()
+    results["_started"] = time.perf_counter()
+    with context():
+        bpy.ops.vr.generate("INVOKE_DEFAULT")
+    bpy.app.timers.register(wait, first_interval=0.05)
+
+
+def wait():
+    if generate.running() is not None:
+        return 0.05
+    started = results.pop("_started")
+    results["window_total_s"] = time.perf_counter() - started
+    results["window_longest_gap_s"] = longest_gap(started)
+    results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
+    seen = [(t, st) for t, st in stages if t >= started]
+    gaps = [(b[0] - a[0], a[1]) for a, b in zip(seen, seen[1:], strict=False)]
+    print("LONGEST GAP AFTER STAGE", max(gaps, key=lambda g: g[0])[1], flush=True)
+    print("RESULT=" + json.dumps({k: round(v, 3) for k, v in results.items()}), flush=True)
+    bpy.ops.wm.quit_blender()
+
+
+bpy.app.timers.register(setup, first_interval=0.5)
