@@ -8,7 +8,9 @@ roughnesses), and every method's render of the subject alone composited over the
 - `report`: summaries, the tables of docs/scenes3d.md, the charts (no bpy).
 
 `python -m study scenes [--quick] [--cases failures] [--out DIR] [--jobs 1]` runs it
-(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5). Research
+(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5),
+`--cases motion` the sequences of a moving subject and camera (`motion`, `motion_run`,
+`motion_report`). Research
 only: bpy is imported when a run starts (once per process); the product never imports this.
 """
 
@@ -35,7 +37,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures")
+CASES = ("default", "failures", "motion")
 
 
 @dataclass(frozen=True)
@@ -143,6 +145,10 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
         )
     if cases not in CASES:
         raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
+    if cases == "motion":  # the sequences (motion.py): their own outputs
+        from . import motion_report
+
+        return motion_report.run_command(quick=quick, out=out, log=log), {}
     if cases == "failures":
         config = QUICK_FAILURES if quick else FAILURES
     else:
