@@ -389,6 +389,7 @@ def _render_settings(scene):
     in 4.5 and 5.x."""
     scene.render.use_compositing = False
     scene.render.film_transparent = True
+    sequence.keep_maps_fresh(scene.render)  # 4.5 would render the first frame's maps
     settings_img = scene.render.image_settings
     settings_img.file_format, settings_img.color_mode = "OPEN_EXR", "RGBA"
     settings_img.color_depth = "32"

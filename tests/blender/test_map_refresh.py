@@ -61,3 +61,14 @@ def test_a_map_rewritten_in_place_shows_in_the_next_persistent_render(addon, tmp
     second = render_mean(scene, tmp_path / "second.exr")
     assert np.allclose(first, RED, atol=0.02)
     assert np.allclose(second, GREEN, atol=0.02), second
+
+
+def test_update_every_frame_turns_persistent_data_off_only_where_it_freezes_maps(addon):
+    scene = bpy.context.scene
+    scene.render.use_persistent_data = True
+    scene.virtual_reflections.sequence = True
+    try:
+        assert scene.render.use_lock_interface
+        assert scene.render.use_persistent_data == (bpy.app.version >= (5, 0, 0))
+    finally:
+        scene.virtual_reflections.sequence = False
