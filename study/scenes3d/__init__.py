@@ -148,7 +148,10 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
     if cases == "motion":  # the sequences (motion.py): their own outputs
         from . import motion_report
 
-        return motion_report.run_command(quick=quick, out=out, log=log), {}
+        try:
+            return motion_report.run_command(quick=quick, out=out, log=log), {}
+        except motion_report.MotionInputError as exc:
+            raise ScenesInputError(str(exc)) from exc
     if cases == "failures":
         config = QUICK_FAILURES if quick else FAILURES
     else:

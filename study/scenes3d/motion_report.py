@@ -31,14 +31,27 @@ FULL = (320, 16, 14, None, None)
 QUICK = (160, 8, 5, ("GROUND",), ("rough 0.35",))
 
 
+class MotionInputError(Exception):
+    """Bad input to the command (bpy missing, unwritable folder); one line."""
+
+
+def _json_safe(value):
+    """NaN as null, infinities as strings, so the file is strict JSON."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
 def run_study(quick=False, log=None, keep=None) -> dict:
     """Render and measure the sequences; the JSON record."""
-    from . import ScenesInputError
-
     try:
         from . import motion_run
     except ImportError as exc:  # bpy (or Blender's own modules) not importable
-        raise ScenesInputError(f"the 3D study needs the bpy module: {exc}") from exc
+        raise MotionInputError(f"the 3D study needs the bpy module: {exc}") from exc
     say = log or (lambda line: print(line, file=sys.stderr, flush=True))
     width, samples, frames, methods, looks = QUICK if quick else FULL
     work = pathlib.Path(keep) if keep else pathlib.Path(tempfile.mkdtemp(prefix="vr_motion_"))
@@ -194,8 +207,6 @@ def add_block(path, text: str, command: str) -> None:
 
 
 def write_outputs(data, target) -> None:
-    from . import _json_safe
-
     target = pathlib.Path(target)
     (target / "images").mkdir(parents=True, exist_ok=True)
     name = "scenes3d_motion" + ("_quick" if data["quick"] else "")
@@ -215,14 +226,12 @@ def write_outputs(data, target) -> None:
 def run_command(quick=False, out=None, log=None) -> dict:
     """`--cases motion`: run, print the table, and with ``out`` (default docs; nothing for
     --quick unless given) write OUT/scenes3d_motion(_quick).json, the chart and the block."""
-    from . import ScenesInputError
-
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
         try:
             (target / "images").mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise ScenesInputError(f"cannot write in {target}: {exc.strerror}") from exc
+            raise MotionInputError(f"cannot write in {target}: {exc.strerror}") from exc
     data = run_study(quick, log=log)
     print(table(data))
     print(
