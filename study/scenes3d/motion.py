@@ -23,8 +23,8 @@ Change between frames k and k + 1 of a column (the truth or a method), on the su
 - `mean`: the change of the subject's mean colour (mean over channels of the absolute change).
 
 Ratio: a method's change over the truth's, per pair. A pair *pops* when a method's change is
-more than POP times the median of its neighbouring pairs' (up to two on each side) and above
-FLOOR, while the truth's at that pair is not above POP times its own neighbours' median.
+above FLOOR and more than POP times the median of its neighbouring pairs' (up to two on each
+side), and that jump is more than POP times the truth's own jump at the pair (`pops`).
 """
 
 from __future__ import annotations
@@ -202,15 +202,19 @@ def _neighbour_median(values, k) -> float:
 
 
 def pops(method: list, truth: list, pop=POP, floor=FLOOR) -> list:
-    """The pairs (indices) where ``method``'s change pops and ``truth``'s does not."""
+    """The pairs (indices) where ``method``'s change pops and ``truth``'s does not: the
+    method's change is above ``floor`` and more than ``pop`` times its neighbours' median, and
+    that jump factor is more than ``pop`` times the truth's own at the pair (where the truth
+    changes more than usual too -- the subject enters a shadow -- the method may follow)."""
     out = []
     for k, (m, t) in enumerate(zip(method, truth)):
         if not (math.isfinite(m) and m > floor):
             continue
-        if m > pop * max(_neighbour_median(method, k), floor / pop):
-            t_near = _neighbour_median(truth, k)
-            if not (math.isfinite(t) and t > pop * max(t_near, floor / pop)):
-                out.append(k)
+        jump = m / max(_neighbour_median(method, k), floor / pop)
+        t_near = _neighbour_median(truth, k)
+        t_jump = t / t_near if math.isfinite(t) and t_near > 0 else 1.0
+        if jump > pop * max(1.0, t_jump):
+            out.append(k)
     return out
 
 
