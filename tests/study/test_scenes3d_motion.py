@@ -3,8 +3,8 @@ motion"): the change measures and the popping rule on made-up frames (no bpy), a
 sequence rendered through the bpy module -- a mirror sphere sliding toward the right border,
 the World look updated per frame as Update Every Frame does it: the default method's change
 per frame pair stays under the bound the docs state and never pops, while a deliberately
-discontinuous variant (the map updated every third frame only) is flagged. About 110 s on two
-busy cores, 60 s idle (bpy 4.5)."""
+discontinuous variant (the map updated every third frame only) is flagged. 124 s on two cores
+shared with other runs (load 9), bpy 4.5."""
 
 import json
 
