@@ -436,6 +436,7 @@ def _render_settings(scene, use_compositor=False):
     multilayer EXR holding both the view layer and the compositor's result."""
     scene.render.use_compositing = use_compositor
     scene.render.film_transparent = True
+    sequence.keep_maps_fresh(scene.render)  # 4.5 would render the first frame's maps
     settings_img = scene.render.image_settings
     if use_compositor:
         if hasattr(settings_img, "media_type"):  # 5.x: multilayer is a media type

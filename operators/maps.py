@@ -50,7 +50,10 @@ def map_name(object_name: str) -> str:
 
 
 def touch(image):
-    """Note that ``image``'s pixels changed (previews follow the count)."""
+    """Note that ``image``'s pixels changed: the image is tagged for the dependency graph (a
+    Cycles render with Persistent Data reloads it only then; bpy 5.x,
+    tests/blender/test_map_refresh.py) and previews follow the count."""
+    image.update_tag()
     _versions[image.name_full] = _versions.get(image.name_full, 0) + 1
 
 

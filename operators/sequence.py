@@ -229,6 +229,21 @@ def _write_map(image, env):
     maps.overwrite(image, env)
 
 
+# bpy 4.5's Cycles keeps the pixels it loaded of an image while Persistent Data is on: a map
+# rewritten in place is not seen again and every frame renders the first one's (5.x reloads a
+# tagged image: maps.touch; tests/blender/test_map_refresh.py).
+PERSISTENT_DATA_KEEPS_MAPS = bpy.app.version < (5, 0, 0)
+
+
+def keep_maps_fresh(render) -> bool:
+    """Turn ``render.use_persistent_data`` off where it would freeze per-frame maps (bpy 4.x);
+    True when it did."""
+    if PERSISTENT_DATA_KEEPS_MAPS and render.use_persistent_data:
+        render.use_persistent_data = False
+        return True
+    return False
+
+
 # --- Update Every Frame: handlers ------------------------------------------------------------
 
 _state = {"suspended": 0, "last": {}, "skipped": {}}
@@ -372,6 +387,8 @@ def on_setting_changed(settings, context):
     scene = settings.id_data
     if settings.sequence and not scene.render.use_lock_interface:
         scene.render.use_lock_interface = True
+    if settings.sequence:
+        keep_maps_fresh(scene.render)
     sync()
 
 

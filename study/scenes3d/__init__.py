@@ -7,10 +7,11 @@ roughnesses), and every method's render of the subject alone composited over the
 - `run`: renders, Generate per add-on method, scores on the subject's pixels (bpy);
 - `report`: summaries, the tables of docs/scenes3d.md, the charts (no bpy).
 
-`python -m study scenes [--quick] [--cases failures|inter] [--out DIR] [--jobs 1]` runs it
-(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5),
+`python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]` runs
+it (`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5),
 `--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
-issue 11, item 4). Research
+issue 11, item 4), `--cases motion` the sequences of a moving subject and camera (`motion`,
+`motion_run`, `motion_report`). Research
 only: bpy is imported when a run starts (once per process); the product never imports this.
 """
 
@@ -37,7 +38,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures", "inter")
+CASES = ("default", "failures", "inter", "motion")
 
 
 @dataclass(frozen=True)
@@ -170,6 +171,13 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
         )
     if cases not in CASES:
         raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
+    if cases == "motion":  # the sequences (motion.py): their own outputs
+        from . import motion_report
+
+        try:
+            return motion_report.run_command(quick=quick, out=out, log=log), {}
+        except motion_report.MotionInputError as exc:
+            raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
