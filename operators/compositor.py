@@ -15,6 +15,18 @@ The compositor API changed in Blender 5.0, and `setup_from_plate` handles both:
   only when one is there (nested ones do not count).
   Alpha Over's inputs are named Background / Foreground there (4.5: Image / Image_001).
 
+The plate reaches the compositor's background through a Scale node set to the render size
+(Stretch), as Blender's own Setup Tracking Scene does: at a Resolution % other than 100 the
+compositor works at the render's size, and an unscaled plate would be cropped to its centre.
+
+Colour management: the composite's background must be the photograph again when saved. The
+render's view transform applies to the whole composite, plate included, so a view transform
+that tone-maps (AgX, the default since Blender 4.0; Filmic; Khronos PBR Neutral) or a look,
+exposure, gamma, curves or white balance repaints the plate (AgX: ~23 8-bit levels on average,
+16 % less saturated). Setup sets the view to Standard on an sRGB display with none of those, the
+one view that gives an sRGB plate's codes back (within 0.15 levels); `VIEW_SETTINGS` lists what
+is recorded and restored, and `setup_from_plate` returns what it changed so the operator can say.
+
 Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
 `undo_setup_from_plate` restores it and removes only what setup added.
 """
@@ -33,6 +45,18 @@ GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
 PREFIX = "VR "  # every node this module adds is named with it
 
 _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
+
+# The view settings that give an sRGB plate's codes back: (settings, property, value). Only the
+# properties this Blender has are touched (white balance is 4.2+).
+VIEW_SETTINGS = (
+    ("display_settings", "display_device", "sRGB"),
+    ("view_settings", "view_transform", "Standard"),
+    ("view_settings", "look", "None"),
+    ("view_settings", "exposure", 0.0),
+    ("view_settings", "gamma", 1.0),
+    ("view_settings", "use_curve_mapping", False),
+    ("view_settings", "use_white_balance", False),
+)
 
 
 # --- scene setup -------------------------------------------------------------------------------
@@ -65,6 +89,7 @@ def setup_from_plate(scene, image) -> dict:
     render.pixel_aspect_x = render.pixel_aspect_y = 1.0
     render.film_transparent = True
     render.use_compositing = True
+    record["view"] = _neutral_view(scene)
     record["camera"] = _show_background(scene.camera, image)
     if _NODE_GROUPS:
         record["compositor"] = _setup_group(scene, image)
@@ -90,6 +115,7 @@ def undo_setup_from_plate(scene) -> bool:
     render.pixel_aspect_x, render.pixel_aspect_y = record["pixel_aspect"]
     render.film_transparent = record["film_transparent"]
     render.use_compositing = record["use_compositing"]
+    _undo_view(scene, record.get("view", {}))
     _undo_background(record["camera"], record["image"])
     api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
     if record["api"] == api:
@@ -99,6 +125,50 @@ def undo_setup_from_plate(scene) -> bool:
             _undo_tree(scene, record["compositor"])
     del scene[RECORD]
     return True
+
+
+def _neutral_view(scene):
+    """Set the scene's colour management to `VIEW_SETTINGS`; returns {"settings.property":
+    previous value} of what it changed (nothing when the file already had them)."""
+    wanted = [
+        (getattr(scene, o), o, n, v) for o, n, v in VIEW_SETTINGS if hasattr(getattr(scene, o), n)
+    ]
+    # Read everything first: a new display can change the view transform by itself.
+    changed = {f"{o}.{n}": getattr(s, n) for s, o, n, v in wanted if getattr(s, n) != v}
+    for settings, _owner, name, value in wanted:  # the display first: it decides the views
+        setattr(settings, name, value)
+    return changed
+
+
+def _undo_view(scene, changed):
+    """Put back what `_neutral_view` changed, display first; a value this Blender no longer
+    offers (a view from another OCIO config) is left as it is."""
+    for key, value in changed.items():
+        owner, name = key.split(".")
+        with contextlib.suppress(TypeError, AttributeError):
+            setattr(getattr(scene, owner), name, value)
+
+
+def describe_view(changed) -> str:
+    """One phrase for the report: what `_neutral_view` changed ('' if nothing), e.g.
+    "view transform AgX -> Standard"."""
+    labels = {
+        "view_settings.view_transform": "view transform",
+        "display_settings.display_device": "display",
+        "view_settings.look": "look",
+        "view_settings.exposure": "exposure",
+        "view_settings.gamma": "gamma",
+        "view_settings.use_curve_mapping": "curves",
+        "view_settings.use_white_balance": "white balance",
+    }
+    new = {f"{owner}.{name}": value for owner, name, value in VIEW_SETTINGS}
+    parts = []
+    for key, previous in changed.items():
+        if isinstance(previous, bool):
+            parts.append(f"{labels[key]} off")
+        else:
+            parts.append(f"{labels[key]} {previous} -> {new[key]}")
+    return ", ".join(parts)
 
 
 def _show_background(camera, image):
@@ -164,6 +234,19 @@ def _plate_node(tree, image, location):
     return node
 
 
+def _render_size(tree, plate, location):
+    """A Scale node fed by `plate` stretching it to the render size (resolution x %), as
+    Setup Tracking Scene does: without it any Resolution % but 100 crops the plate."""
+    scale = _new_node(tree, "CompositorNodeScale", "Plate To Render Size", location)
+    if "Type" in scale.inputs:  # 5.x: the options are menu sockets
+        scale.inputs["Type"].default_value = "Render Size"
+        scale.inputs["Frame Type"].default_value = "Stretch"
+    else:
+        scale.space, scale.frame_method = "RENDER_SIZE", "STRETCH"
+    tree.links.new(plate.outputs["Image"], scale.inputs["Image"])
+    return scale
+
+
 # 4.5: scene.node_tree with a Composite node.
 
 
@@ -194,13 +277,14 @@ def _setup_tree(scene, image):
         layers.scene = scene
         added.append(layers.name)
         previous = layers.outputs["Image"]
-    plate = _plate_node(tree, image, (x - 600, y + 250))
+    plate = _plate_node(tree, image, (x - 800, y + 250))
+    scale = _render_size(tree, plate, (x - 500, y + 250))
     over = _new_node(tree, "CompositorNodeAlphaOver", "Alpha Over", (x - 250, y + 100))
     viewer = _new_node(tree, "CompositorNodeViewer", "Viewer", (x, y + 250))
-    added += [plate.name, over.name, viewer.name]
+    added += [plate.name, scale.name, over.name, viewer.name]
     # 4.5 Alpha Over sockets: Fac, Image (background), Image_001 (foreground).
     background, foreground = _input(over, "Image"), _input(over, "Image_001")
-    tree.links.new(plate.outputs["Image"], background)
+    tree.links.new(scale.outputs["Image"], background)
     tree.links.new(previous, foreground)
     tree.links.new(over.outputs["Image"], target)  # replaces the previous link
     tree.links.new(over.outputs["Image"], viewer.inputs["Image"])
@@ -271,10 +355,11 @@ def _setup_group(scene, image):
         user = _new_node(group, "CompositorNodeGroup", "Previous Compositor", (0, -350))
         user.node_tree = previous
         foreground = next(s for s in user.outputs if s.identifier == result)
-    plate = _plate_node(group, image, (0, 250))
+    plate = _plate_node(group, image, (-300, 250))
+    scale = _render_size(group, plate, (0, 250))
     over = _new_node(group, "CompositorNodeAlphaOver", "Alpha Over", (350, 100))
     viewer = _new_node(group, "CompositorNodeViewer", "Viewer", (600, 250))
-    group.links.new(plate.outputs["Image"], over.inputs["Background"])
+    group.links.new(scale.outputs["Image"], over.inputs["Background"])
     group.links.new(foreground, over.inputs["Foreground"])
     group.links.new(over.outputs["Image"], output.inputs[0])
     group.links.new(over.outputs["Image"], viewer.inputs["Image"])

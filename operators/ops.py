@@ -106,14 +106,16 @@ class VR_OT_setup_plate(bpy.types.Operator):
         scene = context.scene
         image = plate.scene_plate(scene)
         try:
-            compositor.setup_from_plate(scene, image)
+            record = compositor.setup_from_plate(scene, image)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         plate.clear_cache()
-        self.report(
-            {"INFO"}, f"Render set to {image.size[0]}x{image.size[1]}, composited over {image.name}"
-        )
+        message = f"Render set to {image.size[0]}x{image.size[1]}, composited over {image.name}"
+        view = compositor.describe_view(record["view"])
+        if view:  # a tone-mapping view would repaint the plate in the composite
+            message += f"; {view} so the composite keeps the plate's colours"
+        self.report({"INFO"}, message)
         return {"FINISHED"}
 
 
