@@ -37,11 +37,13 @@ import json
 import bpy
 
 from ..virtual_reflections.frames import sequence_range
-from . import plate
+from . import bounds, plate
 from .images import CREATED
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
 GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
+GROUND_NAME = "VR Ground"  # the shadow-catcher plane setup makes (images.CREATED = GROUND_KIND)
+GROUND_KIND = "ground"
 PREFIX = "VR "  # every node this module adds is named with it
 
 _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
@@ -62,7 +64,7 @@ VIEW_SETTINGS = (
 # --- scene setup -------------------------------------------------------------------------------
 
 
-def setup_from_plate(scene, image) -> dict:
+def setup_from_plate(scene, image, ground=False) -> dict:
     """Set `scene` up to render over the plate `image`; returns the record of what changed.
 
     Render size = the plate's (100 %), pixel aspect 1, transparent film, compositing on; the plate
@@ -71,6 +73,10 @@ def setup_from_plate(scene, image) -> dict:
     background, the render -> foreground -> output, and a Viewer). Nothing of the user's is
     deleted. Calling it again first undoes the previous setup, so nothing stacks and
     `undo_setup_from_plate` still returns to the state before the first call.
+
+    The scene's colour management is set to give the plate back (`VIEW_SETTINGS`; what changed
+    is ``record["view"]``). With ``ground``, a shadow-catcher plane is put under the scene's
+    visible meshes (`add_ground`) unless the scene has a ground already.
     """
     width, height = plate.size(image)
     if RECORD in scene:
@@ -91,6 +97,7 @@ def setup_from_plate(scene, image) -> dict:
     render.use_compositing = True
     record["view"] = _neutral_view(scene)
     record["camera"] = _show_background(scene.camera, image)
+    record["ground"] = add_ground(scene) if ground else None
     if _NODE_GROUPS:
         record["compositor"] = _setup_group(scene, image)
     else:
@@ -117,6 +124,7 @@ def undo_setup_from_plate(scene) -> bool:
     render.use_compositing = record["use_compositing"]
     _undo_view(scene, record.get("view", {}))
     _undo_background(record["camera"], record["image"])
+    _remove_ground(record.get("ground"))
     api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
     if record["api"] == api:
         if _NODE_GROUPS:
@@ -169,6 +177,50 @@ def describe_view(changed) -> str:
         else:
             parts.append(f"{labels[key]} {previous} -> {new[key]}")
     return ", ".join(parts)
+
+
+def add_ground(scene):
+    """A shadow-catcher plane under the scene's visible meshes, so they do not float over the
+    photograph: at the lowest point of their bounding boxes (Z = 0 without meshes), 10x their
+    extent (at least 20 m) across, flagged ``is_shadow_catcher`` -- the ground
+    `pipeline.ground_height` finds -- and tagged CREATED. Returns its record (the object's
+    name), or None when the scene has a ground already (a chosen Ground object or a shadow
+    catcher)."""
+    if scene.virtual_reflections.ground_object is not None:
+        return None
+    meshes = [o for o in scene.objects if o.type == "MESH" and o.visible_get()]
+    if any(getattr(o, "is_shadow_catcher", False) for o in meshes):
+        return None
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    if meshes:
+        boxes = [bounds.world_box(o, depsgraph) for o in meshes]
+        low = [min(b[0][i] for b in boxes) for i in range(3)]
+        high = [max(b[1][i] for b in boxes) for i in range(3)]
+        centre = ((low[0] + high[0]) / 2, (low[1] + high[1]) / 2, low[2])
+        size = max(20.0, 10.0 * max(high[0] - low[0], high[1] - low[1]))
+    else:
+        centre, size = (0.0, 0.0, 0.0), 20.0
+    half = size / 2
+    mesh = bpy.data.meshes.new(GROUND_NAME)
+    mesh.from_pydata([(-half, -half, 0), (half, -half, 0), (half, half, 0), (-half, half, 0)],
+                     [], [(0, 1, 2, 3)])  # fmt: skip
+    mesh[CREATED] = GROUND_KIND
+    obj = bpy.data.objects.new(GROUND_NAME, mesh)
+    obj[CREATED] = GROUND_KIND
+    obj.location = centre
+    obj.is_shadow_catcher = True  # Cycles: shows only the shadows cast on it
+    scene.collection.objects.link(obj)
+    return {"object": obj.name}
+
+
+def _remove_ground(record):
+    obj = bpy.data.objects.get(record["object"]) if record else None
+    if obj is None or obj.get(CREATED) != GROUND_KIND:
+        return
+    mesh = obj.data
+    bpy.data.objects.remove(obj)
+    if mesh is not None and mesh.get(CREATED) == GROUND_KIND and mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
 
 
 def _show_background(camera, image):

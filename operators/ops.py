@@ -91,6 +91,12 @@ class VR_OT_setup_plate(bpy.types.Operator):
     bl_label = "Set Up From Plate"
     bl_options = {"REGISTER", "UNDO"}
 
+    ground: bpy.props.BoolProperty(
+        name="Shadow-Catcher Ground",
+        description="Put a shadow-catcher plane under the objects (unless the scene has a ground)",
+        default=True,
+    )
+
     @classmethod
     def poll(cls, context):
         scene = context.scene
@@ -106,7 +112,7 @@ class VR_OT_setup_plate(bpy.types.Operator):
         scene = context.scene
         image = plate.scene_plate(scene)
         try:
-            record = compositor.setup_from_plate(scene, image)
+            record = compositor.setup_from_plate(scene, image, ground=self.ground)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -115,6 +121,8 @@ class VR_OT_setup_plate(bpy.types.Operator):
         view = compositor.describe_view(record["view"])
         if view:  # a tone-mapping view would repaint the plate in the composite
             message += f"; {view} so the composite keeps the plate's colours"
+        if record["ground"]:
+            message += f"; shadow-catcher ground '{record['ground']['object']}' added"
         self.report({"INFO"}, message)
         return {"FINISHED"}
 
