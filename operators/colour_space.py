@@ -25,7 +25,7 @@ import sys
 import bpy
 import numpy as np
 
-from ..virtual_reflections.colour import LINEAR_REC709_TO, srgb_to_linear
+from ..virtual_reflections.colour import LINEAR_REC709_TO, linear_to_srgb, srgb_to_linear
 
 REC709 = "Linear Rec.709"
 
@@ -104,3 +104,12 @@ def convert(pixels: np.ndarray, source: str, target: str) -> np.ndarray:
             f"colour space {source!r} -> {target!r} needs PyOpenColorIO, which is not available"
         )
     return (rgb @ LINEAR_REC709_TO[target].T).astype(np.float32)
+
+
+def to_srgb(linear: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 in the working space -> sRGB-encoded [0, 1] for an 8-bit display
+    (previews): through OCIO from a wide working space (its primaries), else the sRGB curve."""
+    working = working_space()
+    if working != REC709:
+        linear = convert(linear, working, REC709)
+    return linear_to_srgb(np.clip(linear, 0.0, 1.0))

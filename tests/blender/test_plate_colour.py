@@ -118,3 +118,13 @@ def test_numpy_fallback_matches_opencolorio(spaces, addon):
     assert np.abs(srgb - colour.srgb_to_linear(rgb)).max() < 1e-4
     with pytest.raises(ValueError, match="No Such Space"):
         spaces.convert(rgb, "No Such Space", "Linear Rec.709")
+
+
+@pytest.mark.parametrize("working", WORKING)
+def test_preview_shows_the_plate_codes_back(spaces, plates, tmp_path, working):
+    """The map back for display: working-space pixels -> sRGB codes, the plate's own codes."""
+    set_working(working)
+    c = codes()
+    linear, _ = plates.image_pixels(load(write_png(tmp_path / "p8.png", c), "sRGB"))
+    shown = np.rint(spaces.to_srgb(linear) * 255)
+    assert np.abs(shown - c).max() <= 1
