@@ -37,7 +37,7 @@ import json
 import bpy
 
 from ..virtual_reflections.frames import sequence_range
-from . import bounds, plate
+from . import bounds, camera_match, plate
 from .images import CREATED
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
@@ -64,7 +64,7 @@ VIEW_SETTINGS = (
 # --- scene setup -------------------------------------------------------------------------------
 
 
-def setup_from_plate(scene, image, ground=False) -> dict:
+def setup_from_plate(scene, image, ground=False, lens=False) -> dict:
     """Set `scene` up to render over the plate `image`; returns the record of what changed.
 
     Render size = the plate's (100 %), pixel aspect 1, transparent film, compositing on; the plate
@@ -76,7 +76,10 @@ def setup_from_plate(scene, image, ground=False) -> dict:
 
     The scene's colour management is set to give the plate back (`VIEW_SETTINGS`; what changed
     is ``record["view"]``). With ``ground``, a shadow-catcher plane is put under the scene's
-    visible meshes (`add_ground`) unless the scene has a ground already.
+    visible meshes (`add_ground`) unless the scene has a ground already. With ``lens``, the
+    camera's focal length is set from the photo's 35 mm-equivalent focal length when its
+    metadata has one (camera_match.py). ``record["advice"]`` says how to match the camera
+    to the photo, and warns when the camera was framed for another aspect.
     """
     width, height = plate.size(image)
     if RECORD in scene:
@@ -98,6 +101,12 @@ def setup_from_plate(scene, image, ground=False) -> dict:
     record["view"] = _neutral_view(scene)
     record["camera"] = _show_background(scene.camera, image)
     record["ground"] = add_ground(scene) if ground else None
+    record["lens"] = camera_match.match_lens(scene.camera, image, width, height) if lens else None
+    framed = (
+        record["resolution"][0] * record["pixel_aspect"][0],
+        record["resolution"][1] * record["pixel_aspect"][1],
+    )
+    record["advice"] = camera_match.advice(image, framed, record["lens"])
     if _NODE_GROUPS:
         record["compositor"] = _setup_group(scene, image)
     else:
@@ -125,6 +134,7 @@ def undo_setup_from_plate(scene) -> bool:
     _undo_view(scene, record.get("view", {}))
     _undo_background(record["camera"], record["image"])
     _remove_ground(record.get("ground"))
+    camera_match.undo_lens(record.get("lens"), bpy.data.cameras)
     api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
     if record["api"] == api:
         if _NODE_GROUPS:

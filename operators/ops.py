@@ -96,6 +96,11 @@ class VR_OT_setup_plate(bpy.types.Operator):
         description="Put a shadow-catcher plane under the objects (unless the scene has a ground)",
         default=True,
     )
+    lens: bpy.props.BoolProperty(
+        name="Focal Length From Photo",
+        description="Set the camera's focal length from the photo's 35 mm-equivalent metadata",
+        default=True,
+    )
 
     @classmethod
     def poll(cls, context):
@@ -112,7 +117,7 @@ class VR_OT_setup_plate(bpy.types.Operator):
         scene = context.scene
         image = plate.scene_plate(scene)
         try:
-            record = compositor.setup_from_plate(scene, image, ground=self.ground)
+            record = compositor.setup_from_plate(scene, image, ground=self.ground, lens=self.lens)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -124,6 +129,8 @@ class VR_OT_setup_plate(bpy.types.Operator):
         if record["ground"]:
             message += f"; shadow-catcher ground '{record['ground']['object']}' added"
         self.report({"INFO"}, message)
+        for line in record["advice"]:
+            self.report({"WARNING"} if line.startswith("Warning") else {"INFO"}, line)
         return {"FINISHED"}
 
 
