@@ -12,9 +12,11 @@ ACEScg is ~35 % more saturated).
 How: PyOpenColorIO ships with Blender. In Blender it imports as it is; in the ``bpy`` module it
 sits in the wheel's bundled ``python/lib/pythonX.Y/site-packages`` and is loaded from there by
 path (no ``sys.path`` edit). The config is the one Blender reads: ``$OCIO`` when set, else
-``datafiles/colormanagement/config.ocio``. Without PyOpenColorIO, `convert` falls back to the
-engine's pure-NumPy transfer curves and matrices (`virtual_reflections.colour`) for the spaces
-it knows (sRGB, the linear working spaces) and raises ValueError for the others.
+``datafiles/colormanagement/config.ocio``. Some Blender builds ship without PyOpenColorIO
+(Linux distributions' packages); then `convert` falls back to `convert_blender`: Blender's own
+colour-management API (``mathutils.Color.from_*_to_scene_linear``, which use the same config)
+gives the 3x3 matrices between the linear spaces it names, and the sRGB curve decodes the
+encoded ones (sRGB, Display P3); other spaces raise ValueError.
 """
 
 import functools
@@ -23,9 +25,10 @@ import os
 import sys
 
 import bpy
+import mathutils
 import numpy as np
 
-from ..virtual_reflections.colour import LINEAR_REC709_TO, linear_to_srgb, srgb_to_linear
+from ..virtual_reflections.colour import DISPLAY_P3_TO_XYZ_D65, linear_to_srgb, srgb_to_linear
 
 REC709 = "Linear Rec.709"
 
@@ -96,14 +99,47 @@ def convert(pixels: np.ndarray, source: str, target: str) -> np.ndarray:
         out = rgb.copy()
         processor.applyRGB(out)
         return out
-    # Fallback without PyOpenColorIO: the sRGB curve and 3x3 matrices out of Linear Rec.709.
-    if source == "sRGB":
-        rgb, source = srgb_to_linear(rgb), REC709
-    if source != REC709 or target not in LINEAR_REC709_TO:
+    return convert_blender(rgb, source, target)
+
+
+# Blender's API: linear spaces -> the working space ("scene linear"), by mathutils.Color method.
+_TO_SCENE = {
+    "Linear Rec.709": "from_rec709_linear_to_scene_linear",
+    "Linear Rec.2020": "from_rec2020_linear_to_scene_linear",  # 4.4+
+    "ACEScg": "from_acescg_to_scene_linear",  # 4.4+
+    "ACES2065-1": "from_aces_to_scene_linear",
+    "Linear CIE-XYZ D65": "from_xyz_d65_to_scene_linear",
+}
+# Encoded spaces the fallback knows: (the linear space they encode, extra matrix to it or None).
+_ENCODED = {"sRGB": ("Linear Rec.709", None), "Display P3": ("Linear CIE-XYZ D65", "P3")}
+
+
+def _to_scene(space) -> np.ndarray:
+    """(3, 3) float64 matrix: linear ``space`` -> the working space, by Blender's API."""
+    method = _TO_SCENE.get(space)
+    if method is None or not hasattr(mathutils.Color, method):
         raise ValueError(
-            f"colour space {source!r} -> {target!r} needs PyOpenColorIO, which is not available"
+            f"colour space {space!r}: PyOpenColorIO is not available and Blender's API "
+            "does not convert it"
         )
-    return (rgb @ LINEAR_REC709_TO[target].T).astype(np.float32)
+    columns = [getattr(mathutils.Color(e), method)() for e in np.eye(3)]
+    return np.array(columns, dtype=np.float64).T
+
+
+def convert_blender(pixels: np.ndarray, source: str, target: str) -> np.ndarray:
+    """`convert` without PyOpenColorIO: between the linear spaces of `_TO_SCENE` and the
+    working space, and from sRGB or Display P3 (the sRGB curve, then their primaries).
+    ValueError (one line) for another space."""
+    rgb = np.asarray(pixels, dtype=np.float32)
+    if source in _ENCODED:
+        rgb = srgb_to_linear(rgb)
+        source, extra = _ENCODED[source]
+        matrix = _to_scene(source) @ (DISPLAY_P3_TO_XYZ_D65 if extra else np.eye(3))
+    else:
+        matrix = _to_scene(source)
+    if target != working_space():
+        matrix = np.linalg.inv(_to_scene(target)) @ matrix
+    return (rgb @ matrix.T.astype(np.float32)).astype(np.float32)
 
 
 def to_srgb(linear: np.ndarray) -> np.ndarray:

@@ -25,21 +25,13 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
-# Scene-linear Rec.709 -> the other linear working spaces Blender offers (5.x), as 3x3 matrices
-# applied to column vectors (rgb_out = M @ rgb_in): the values of Blender 5.2's OpenColorIO
-# config (ACEScg through a Bradford D65 -> ACES white adaptation). The add-on converts with
-# OpenColorIO itself; these are its fallback without PyOpenColorIO.
-LINEAR_REC709_TO = {
-    "Linear Rec.709": np.eye(3, dtype=np.float32),
-    "Linear Rec.2020": np.array(
-        [[0.627404, 0.329283, 0.043313], [0.069097, 0.919540, 0.011362],
-         [0.016392, 0.088013, 0.895595]], dtype=np.float32
-    ),
-    "ACEScg": np.array(
-        [[0.613097, 0.339523, 0.047380], [0.070194, 0.916354, 0.013452],
-         [0.020616, 0.109570, 0.869815]], dtype=np.float32
-    ),
-}  # fmt: skip
+# Linear Display P3 (DCI-P3 primaries, D65 white) -> CIE XYZ (D65), applied to column vectors
+# (xyz = M @ rgb): SMPTE EG 432-1. The add-on's colour conversion without OpenColorIO uses it
+# for Display P3 plates (Blender's API converts from XYZ D65 to the working space).
+DISPLAY_P3_TO_XYZ_D65 = np.array(
+    [[0.486571, 0.265668, 0.198217], [0.228975, 0.691739, 0.079287],
+     [0.000000, 0.045113, 1.043944]], dtype=np.float64
+)  # fmt: skip
 
 _SRGB8_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 
