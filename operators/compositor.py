@@ -22,8 +22,8 @@ compositor works at the render's size, and an unscaled plate would be cropped to
 Colour management: the composite's background must be the photograph again when saved. The
 render's view transform applies to the whole composite, plate included, so a view transform
 that tone-maps (AgX, the default since Blender 4.0; Filmic; Khronos PBR Neutral) or a look,
-exposure, gamma, curves or white balance repaints the plate (AgX: ~23 8-bit levels on average,
-16 % less saturated). Setup sets the view to Standard on an sRGB display with none of those, the
+exposure, gamma, curves or white balance repaints the plate (AgX: 17-23 8-bit levels off on
+average, less saturated). Setup sets the view to Standard on an sRGB display with none of those, the
 one view that gives an sRGB plate's codes back (within 0.15 levels); `VIEW_SETTINGS` lists what
 is recorded and restored, and `setup_from_plate` returns what it changed so the operator can say.
 
@@ -165,6 +165,19 @@ def _undo_view(scene, changed):
         owner, name = key.split(".")
         with contextlib.suppress(TypeError, AttributeError):
             setattr(getattr(scene, owner), name, value)
+
+
+def view_warning(scene) -> str | None:
+    """One line when ``scene`` was set up from a plate and its view no longer gives the plate
+    back (the artist changed it since), else None: the panel shows it."""
+    if RECORD not in scene:
+        return None
+    for owner, name, value in VIEW_SETTINGS[:3]:  # display, view transform, look
+        current = getattr(getattr(scene, owner), name, value)
+        if current != value:
+            what = name.replace("_", " ").capitalize()
+            return f"{what} {current} repaints the plate in the composite ({value} keeps it)"
+    return None
 
 
 def describe_view(changed) -> str:

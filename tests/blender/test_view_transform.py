@@ -166,3 +166,17 @@ def test_plate_fills_the_render_at_any_resolution_percentage(comp, tmp_path, per
     inner = (slice(1, -1), slice(1, -1))  # resampling at the edges clamps
     error = np.abs(out[inner][..., :3] - expected[inner])
     assert error.max() < 0.02, f"max error {error.max():.4f}"
+
+
+def test_panel_warns_when_the_view_is_changed_back(comp, tmp_path):
+    plate = write_image(tmp_path / "plate.png", photo(8, 6), "uint8")
+    scene, image = empty_scene(tmp_path, plate)
+    assert comp.view_warning(scene) is None  # not set up: nothing to say
+    comp.setup_from_plate(scene, image)
+    assert comp.view_warning(scene) is None
+    scene.view_settings.view_transform = "AgX"
+    assert comp.view_warning(scene) == (
+        "View transform AgX repaints the plate in the composite (Standard keeps it)"
+    )
+    comp.undo_setup_from_plate(scene)
+    assert comp.view_warning(scene) is None
