@@ -51,6 +51,8 @@ _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 
 # The view settings that give an sRGB plate's codes back: (settings, property, value). Only the
 # properties this Blender has are touched (white balance is 4.2+).
 VIEW_SETTINGS = (
+    # The saved file follows the scene's view, not an output override of its own.
+    ("render.image_settings", "color_management", "FOLLOW_SCENE"),
     ("display_settings", "display_device", "sRGB"),
     ("view_settings", "view_transform", "Standard"),
     ("view_settings", "look", "None"),
@@ -149,22 +151,29 @@ def _neutral_view(scene):
     """Set the scene's colour management to `VIEW_SETTINGS`; returns {"settings.property":
     previous value} of what it changed (nothing when the file already had them)."""
     wanted = [
-        (getattr(scene, o), o, n, v) for o, n, v in VIEW_SETTINGS if hasattr(getattr(scene, o), n)
+        (_owner(scene, o), o, n, v) for o, n, v in VIEW_SETTINGS if hasattr(_owner(scene, o), n)
     ]
     # Read everything first: a new display can change the view transform by itself.
     changed = {f"{o}.{n}": getattr(s, n) for s, o, n, v in wanted if getattr(s, n) != v}
-    for settings, _owner, name, value in wanted:  # the display first: it decides the views
+    for settings, _path, name, value in wanted:  # the display first: it decides the views
         setattr(settings, name, value)
     return changed
+
+
+def _owner(scene, path):
+    """The settings struct at dotted ``path`` under ``scene`` ("render.image_settings")."""
+    for name in path.split("."):
+        scene = getattr(scene, name)
+    return scene
 
 
 def _undo_view(scene, changed):
     """Put back what `_neutral_view` changed, display first; a value this Blender no longer
     offers (a view from another OCIO config) is left as it is."""
     for key, value in changed.items():
-        owner, name = key.split(".")
+        owner, name = key.rsplit(".", 1)
         with contextlib.suppress(TypeError, AttributeError):
-            setattr(getattr(scene, owner), name, value)
+            setattr(_owner(scene, owner), name, value)
 
 
 def view_warning(scene) -> str | None:
@@ -172,8 +181,8 @@ def view_warning(scene) -> str | None:
     back (the artist changed it since), else None: the panel shows it."""
     if RECORD not in scene:
         return None
-    for owner, name, value in VIEW_SETTINGS[:3]:  # display, view transform, look
-        current = getattr(getattr(scene, owner), name, value)
+    for owner, name, value in VIEW_SETTINGS[:4]:  # output, display, view transform, look
+        current = getattr(_owner(scene, owner), name, value)
         if current != value:
             what = name.replace("_", " ").capitalize()
             return f"{what} {current} repaints the plate in the composite ({value} keeps it)"
@@ -184,6 +193,7 @@ def describe_view(changed) -> str:
     """One phrase for the report: what `_neutral_view` changed ('' if nothing), e.g.
     "view transform AgX -> Standard"."""
     labels = {
+        "render.image_settings.color_management": "output colour management",
         "view_settings.view_transform": "view transform",
         "display_settings.display_device": "display",
         "view_settings.look": "look",

@@ -93,8 +93,11 @@ def test_every_view_setting_is_recorded_and_undone(comp, tmp_path):
     view.exposure, view.gamma, view.use_curve_mapping = 1.5, 0.8, True
     if hasattr(view, "use_white_balance"):
         view.use_white_balance = True
+    output = scene.render.image_settings
+    output.color_management = "OVERRIDE"  # a saved file with a view of its own
     before = {k: getattr(view, k) for k in ("view_transform", "look", "exposure", "gamma")}
     record = comp.setup_from_plate(scene, image)
+    assert output.color_management == "FOLLOW_SCENE"
     assert (view.view_transform, view.look, view.exposure, view.gamma) == (
         "Standard",
         "None",
@@ -108,6 +111,7 @@ def test_every_view_setting_is_recorded_and_undone(comp, tmp_path):
     comp.setup_from_plate(scene, image)  # again: still undoes to the first state
     comp.undo_setup_from_plate(scene)
     assert {k: getattr(view, k) for k in before} == before
+    assert output.color_management == "OVERRIDE"
     assert view.use_curve_mapping
     assert getattr(view, "use_white_balance", True)
 
@@ -126,6 +130,9 @@ def test_f12_background_equals_an_8bit_plate(comp, tmp_path):
     codes = photo()
     plate = write_image(tmp_path / "plate.png", codes, "uint8")
     scene, image = empty_scene(tmp_path, plate)
+    output = scene.render.image_settings
+    output.color_management = "OVERRIDE"  # and the output's own view tone-maps too
+    output.view_settings.view_transform = "Filmic"
     comp.setup_from_plate(scene, image)
     after = render_png(scene, tmp_path / "after.png")
     scene.view_settings.view_transform = "AgX"  # what the file had: the plate repainted
