@@ -132,3 +132,41 @@ def test_preview_shows_the_plate_codes_back(spaces, plates, tmp_path, working):
     linear, _ = plates.image_pixels(load(write_png(tmp_path / "p8.png", c), "sRGB"))
     shown = np.rint(spaces.to_srgb(linear) * 255)
     assert np.abs(shown - c).max() <= 1
+
+
+@pytest.mark.parametrize("working", WORKING)
+def test_chrome_reflection_of_an_8bit_plate_renders_its_colour(addon, tmp_path, working):
+    """End to end: a Replace (chrome) sphere reflecting a flat 8-bit sRGB plate renders, through
+    the Standard view, the plate's own codes in every working space (an sRGB plate read as if
+    in ACEScg would come out ~35 % more saturated)."""
+    set_working(working)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    camera.location, camera.rotation_euler = (0, -6, 0), (np.pi / 2, 0, 0)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=32, ring_count=16)
+    bpy.ops.object.shade_smooth()
+    flat = np.zeros((48, 64, 3), np.uint8)
+    flat[...] = (200, 90, 40)
+    image = load(write_png(tmp_path / "flat.png", flat), "sRGB")
+    settings = scene.virtual_reflections
+    settings.plate_image, settings.combine, settings.resolution = image, "REPLACE", "256"
+    settings.method = "PAPER"  # every direction of the map comes from the plate
+    assert bpy.ops.vr.setup_plate(ground=False, lens=False) == {"FINISHED"}
+    assert bpy.ops.vr.generate() == {"FINISHED"}
+    scene.render.engine = "CYCLES"
+    scene.cycles.device, scene.cycles.samples, scene.cycles.use_denoising = "CPU", 4, False
+    scene.render.compositor_device = "CPU"
+    scene.render.use_compositing = False  # the sphere alone
+    output = scene.render.image_settings
+    output.file_format, output.color_depth, output.color_mode = "PNG", "8", "RGBA"
+    scene.render.filepath = str(tmp_path / "ball.png")
+    bpy.ops.render.render(write_still=True)
+    found = oiio.ImageInput.open(str(tmp_path / "ball.png"))
+    rgba = found.read_image("uint8").astype(int)
+    found.close()
+    ball = rgba[rgba[..., 3] == 255][:, :3]
+    assert len(ball) > 100
+    error = np.abs(np.median(ball, axis=0) - (200, 90, 40))
+    assert error.max() <= 2, np.median(ball, axis=0)
