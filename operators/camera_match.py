@@ -28,7 +28,8 @@ def focal_lengths(image) -> tuple[float | None, float | None]:
     except ImportError:
         return None, None
     found = oiio.ImageInput.open(path)
-    if found is None:
+    if found is None:  # a movie, or a format OpenImageIO does not read: no metadata
+        oiio.geterror()  # clear it, or OpenImageIO prints it at exit
         return None, None
     spec = found.spec()
     focal, focal35 = spec.get("Exif:FocalLength"), spec.get("Exif:FocalLengthIn35mmFilm")
