@@ -23,9 +23,10 @@ Colour management: the composite's background must be the photograph again when 
 render's view transform applies to the whole composite, plate included, so a view transform
 that tone-maps (AgX, the default since Blender 4.0; Filmic; Khronos PBR Neutral) or a look,
 exposure, gamma, curves or white balance repaints the plate (AgX: 17-23 8-bit levels off on
-average, less saturated). Setup sets the view to Standard on an sRGB display with none of those, the
-one view that gives an sRGB plate's codes back (within 0.15 levels); `VIEW_SETTINGS` lists what
-is recorded and restored, and `setup_from_plate` returns what it changed so the operator can say.
+average, less saturated). Setup sets the view to Standard on an sRGB display with none of
+those, the one view that gives an sRGB plate's codes back (within 0.15 levels);
+`VIEW_SETTINGS` lists what is recorded and restored, and `setup_from_plate` returns what it
+changed so the operator can say.
 
 Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
 `undo_setup_from_plate` restores it and removes only what setup added.
