@@ -187,3 +187,17 @@ def test_panel_warns_when_the_view_is_changed_back(comp, tmp_path):
     )
     comp.undo_setup_from_plate(scene)
     assert comp.view_warning(scene) is None
+
+
+def test_operator_reports_what_it_changed(addon, tmp_path, capfd):
+    plate = write_image(tmp_path / "plate.png", photo(8, 6), "uint8")
+    scene, image = empty_scene(tmp_path, plate)
+    scene.virtual_reflections.plate_image = image
+    capfd.readouterr()
+    assert bpy.ops.vr.setup_plate(ground=False) == {"FINISHED"}
+    said = capfd.readouterr()
+    assert "view transform AgX -> Standard so the composite keeps the plate's colours" in (
+        said.out + said.err
+    )
+    assert bpy.ops.vr.undo_setup_plate() == {"FINISHED"}
+    assert scene.view_settings.view_transform == "AgX"
