@@ -15,6 +15,19 @@ The compositor API changed in Blender 5.0, and `setup_from_plate` handles both:
   only when one is there (nested ones do not count).
   Alpha Over's inputs are named Background / Foreground there (4.5: Image / Image_001).
 
+The plate reaches the compositor's background through a Scale node set to the render size
+(Stretch), as Blender's own Setup Tracking Scene does: at a Resolution % other than 100 the
+compositor works at the render's size, and an unscaled plate would be cropped to its centre.
+
+Colour management: the composite's background must be the photograph again when saved. The
+render's view transform applies to the whole composite, plate included, so a view transform
+that tone-maps (AgX, the default since Blender 4.0; Filmic; Khronos PBR Neutral) or a look,
+exposure, gamma, curves or white balance repaints the plate (AgX: 17-23 8-bit levels off on
+average, less saturated). Setup sets the view to Standard on an sRGB display with none of
+those, the one view that gives an sRGB plate's codes back (within 0.15 levels);
+`VIEW_SETTINGS` lists what is recorded and restored, and `setup_from_plate` returns what it
+changed so the operator can say.
+
 Everything `setup_from_plate` changes is recorded as JSON in ``scene[RECORD]``;
 `undo_setup_from_plate` restores it and removes only what setup added.
 """
@@ -25,20 +38,36 @@ import json
 import bpy
 
 from ..virtual_reflections.frames import sequence_range
-from . import plate
+from . import bounds, camera_match, plate
 from .images import CREATED
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
 GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
+GROUND_NAME = "VR Ground"  # the shadow-catcher plane setup makes (images.CREATED = GROUND_KIND)
+GROUND_KIND = "ground"
 PREFIX = "VR "  # every node this module adds is named with it
 
 _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
+
+# The view settings that give an sRGB plate's codes back: (settings, property, value). Only the
+# properties this Blender has are touched (white balance is 4.2+).
+VIEW_SETTINGS = (
+    # The saved file follows the scene's view, not an output override of its own.
+    ("render.image_settings", "color_management", "FOLLOW_SCENE"),
+    ("display_settings", "display_device", "sRGB"),
+    ("view_settings", "view_transform", "Standard"),
+    ("view_settings", "look", "None"),
+    ("view_settings", "exposure", 0.0),
+    ("view_settings", "gamma", 1.0),
+    ("view_settings", "use_curve_mapping", False),
+    ("view_settings", "use_white_balance", False),
+)
 
 
 # --- scene setup -------------------------------------------------------------------------------
 
 
-def setup_from_plate(scene, image) -> dict:
+def setup_from_plate(scene, image, ground=False, lens=False) -> dict:
     """Set `scene` up to render over the plate `image`; returns the record of what changed.
 
     Render size = the plate's (100 %), pixel aspect 1, transparent film, compositing on; the plate
@@ -47,6 +76,13 @@ def setup_from_plate(scene, image) -> dict:
     background, the render -> foreground -> output, and a Viewer). Nothing of the user's is
     deleted. Calling it again first undoes the previous setup, so nothing stacks and
     `undo_setup_from_plate` still returns to the state before the first call.
+
+    The scene's colour management is set to give the plate back (`VIEW_SETTINGS`; what changed
+    is ``record["view"]``). With ``ground``, a shadow-catcher plane is put under the scene's
+    visible meshes (`add_ground`) unless the scene has a ground already. With ``lens``, the
+    camera's focal length is set from the photo's 35 mm-equivalent focal length when its
+    metadata has one (camera_match.py). ``record["advice"]`` says how to match the camera
+    to the photo, and warns when the camera was framed for another aspect.
     """
     width, height = plate.size(image)
     if RECORD in scene:
@@ -65,7 +101,15 @@ def setup_from_plate(scene, image) -> dict:
     render.pixel_aspect_x = render.pixel_aspect_y = 1.0
     render.film_transparent = True
     render.use_compositing = True
+    record["view"] = _neutral_view(scene)
     record["camera"] = _show_background(scene.camera, image)
+    record["ground"] = add_ground(scene) if ground else None
+    record["lens"] = camera_match.match_lens(scene.camera, image, width, height) if lens else None
+    framed = (
+        record["resolution"][0] * record["pixel_aspect"][0],
+        record["resolution"][1] * record["pixel_aspect"][1],
+    )
+    record["advice"] = camera_match.advice(image, framed, record["lens"])
     if _NODE_GROUPS:
         record["compositor"] = _setup_group(scene, image)
     else:
@@ -90,7 +134,10 @@ def undo_setup_from_plate(scene) -> bool:
     render.pixel_aspect_x, render.pixel_aspect_y = record["pixel_aspect"]
     render.film_transparent = record["film_transparent"]
     render.use_compositing = record["use_compositing"]
+    _undo_view(scene, record.get("view", {}))
     _undo_background(record["camera"], record["image"])
+    _remove_ground(record.get("ground"))
+    camera_match.undo_lens(record.get("lens"), bpy.data.cameras)
     api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
     if record["api"] == api:
         if _NODE_GROUPS:
@@ -99,6 +146,115 @@ def undo_setup_from_plate(scene) -> bool:
             _undo_tree(scene, record["compositor"])
     del scene[RECORD]
     return True
+
+
+def _neutral_view(scene):
+    """Set the scene's colour management to `VIEW_SETTINGS`; returns {"settings.property":
+    previous value} of what it changed (nothing when the file already had them)."""
+    wanted = [
+        (_owner(scene, o), o, n, v) for o, n, v in VIEW_SETTINGS if hasattr(_owner(scene, o), n)
+    ]
+    # Read everything first: a new display can change the view transform by itself.
+    changed = {f"{o}.{n}": getattr(s, n) for s, o, n, v in wanted if getattr(s, n) != v}
+    for settings, _path, name, value in wanted:  # the display first: it decides the views
+        setattr(settings, name, value)
+    return changed
+
+
+def _owner(scene, path):
+    """The settings struct at dotted ``path`` under ``scene`` ("render.image_settings")."""
+    for name in path.split("."):
+        scene = getattr(scene, name)
+    return scene
+
+
+def _undo_view(scene, changed):
+    """Put back what `_neutral_view` changed, display first; a value this Blender no longer
+    offers (a view from another OCIO config) is left as it is."""
+    for key, value in changed.items():
+        owner, name = key.rsplit(".", 1)
+        with contextlib.suppress(TypeError, AttributeError):
+            setattr(_owner(scene, owner), name, value)
+
+
+def view_warning(scene) -> str | None:
+    """One line when ``scene`` was set up from a plate and its view no longer gives the plate
+    back (the artist changed it since), else None: the panel shows it."""
+    if RECORD not in scene:
+        return None
+    for owner, name, value in VIEW_SETTINGS[:4]:  # output, display, view transform, look
+        current = getattr(_owner(scene, owner), name, value)
+        if current != value:
+            what = name.replace("_", " ").capitalize()
+            return f"{what} {current} repaints the plate in the composite ({value} keeps it)"
+    return None
+
+
+def describe_view(changed) -> str:
+    """One phrase for the report: what `_neutral_view` changed ('' if nothing), e.g.
+    "view transform AgX -> Standard"."""
+    labels = {
+        "render.image_settings.color_management": "output colour management",
+        "view_settings.view_transform": "view transform",
+        "display_settings.display_device": "display",
+        "view_settings.look": "look",
+        "view_settings.exposure": "exposure",
+        "view_settings.gamma": "gamma",
+        "view_settings.use_curve_mapping": "curves",
+        "view_settings.use_white_balance": "white balance",
+    }
+    new = {f"{owner}.{name}": value for owner, name, value in VIEW_SETTINGS}
+    parts = []
+    for key, previous in changed.items():
+        if isinstance(previous, bool):
+            parts.append(f"{labels[key]} off")
+        else:
+            parts.append(f"{labels[key]} {previous} -> {new[key]}")
+    return ", ".join(parts)
+
+
+def add_ground(scene):
+    """A shadow-catcher plane under the scene's visible meshes, so they do not float over the
+    photograph: at the lowest point of their bounding boxes (Z = 0 without meshes), 10x their
+    extent (at least 20 m) across, flagged ``is_shadow_catcher`` -- the ground
+    `pipeline.ground_height` finds -- and tagged CREATED. Returns its record (the object's
+    name), or None when the scene has a ground already (a chosen Ground object or a shadow
+    catcher)."""
+    if scene.virtual_reflections.ground_object is not None:
+        return None
+    meshes = [o for o in scene.objects if o.type == "MESH" and o.visible_get()]
+    if any(getattr(o, "is_shadow_catcher", False) for o in meshes):
+        return None
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    if meshes:
+        boxes = [bounds.world_box(o, depsgraph) for o in meshes]
+        low = [min(b[0][i] for b in boxes) for i in range(3)]
+        high = [max(b[1][i] for b in boxes) for i in range(3)]
+        centre = ((low[0] + high[0]) / 2, (low[1] + high[1]) / 2, low[2])
+        size = max(20.0, 10.0 * max(high[0] - low[0], high[1] - low[1]))
+    else:
+        centre, size = (0.0, 0.0, 0.0), 20.0
+    half = size / 2
+    mesh = bpy.data.meshes.new(GROUND_NAME)
+    mesh.from_pydata([(-half, -half, 0), (half, -half, 0), (half, half, 0), (-half, half, 0)],
+                     [], [(0, 1, 2, 3)])  # fmt: skip
+    mesh[CREATED] = GROUND_KIND
+    obj = bpy.data.objects.new(GROUND_NAME, mesh)
+    obj[CREATED] = GROUND_KIND
+    obj.location = centre
+    obj.is_shadow_catcher = True  # Cycles: shows only the shadows cast on it
+    scene.collection.objects.link(obj)
+    return {"object": obj.name}
+
+
+def _remove_ground(record):
+    obj = bpy.data.objects.get(record["object"]) if record else None
+    if obj is None or obj.get(CREATED) != GROUND_KIND:
+        return
+    mesh = obj.data
+    bpy.data.objects.remove(obj)
+    if mesh is not None and mesh.get(CREATED) == GROUND_KIND and mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
 
 
 def _show_background(camera, image):
@@ -164,6 +320,19 @@ def _plate_node(tree, image, location):
     return node
 
 
+def _render_size(tree, plate, location):
+    """A Scale node fed by `plate` stretching it to the render size (resolution x %), as
+    Setup Tracking Scene does: without it any Resolution % but 100 crops the plate."""
+    scale = _new_node(tree, "CompositorNodeScale", "Plate To Render Size", location)
+    if "Type" in scale.inputs:  # 5.x: the options are menu sockets
+        scale.inputs["Type"].default_value = "Render Size"
+        scale.inputs["Frame Type"].default_value = "Stretch"
+    else:
+        scale.space, scale.frame_method = "RENDER_SIZE", "STRETCH"
+    tree.links.new(plate.outputs["Image"], scale.inputs["Image"])
+    return scale
+
+
 # 4.5: scene.node_tree with a Composite node.
 
 
@@ -194,13 +363,14 @@ def _setup_tree(scene, image):
         layers.scene = scene
         added.append(layers.name)
         previous = layers.outputs["Image"]
-    plate = _plate_node(tree, image, (x - 600, y + 250))
+    plate = _plate_node(tree, image, (x - 800, y + 250))
+    scale = _render_size(tree, plate, (x - 500, y + 250))
     over = _new_node(tree, "CompositorNodeAlphaOver", "Alpha Over", (x - 250, y + 100))
     viewer = _new_node(tree, "CompositorNodeViewer", "Viewer", (x, y + 250))
-    added += [plate.name, over.name, viewer.name]
+    added += [plate.name, scale.name, over.name, viewer.name]
     # 4.5 Alpha Over sockets: Fac, Image (background), Image_001 (foreground).
     background, foreground = _input(over, "Image"), _input(over, "Image_001")
-    tree.links.new(plate.outputs["Image"], background)
+    tree.links.new(scale.outputs["Image"], background)
     tree.links.new(previous, foreground)
     tree.links.new(over.outputs["Image"], target)  # replaces the previous link
     tree.links.new(over.outputs["Image"], viewer.inputs["Image"])
@@ -271,10 +441,11 @@ def _setup_group(scene, image):
         user = _new_node(group, "CompositorNodeGroup", "Previous Compositor", (0, -350))
         user.node_tree = previous
         foreground = next(s for s in user.outputs if s.identifier == result)
-    plate = _plate_node(group, image, (0, 250))
+    plate = _plate_node(group, image, (-300, 250))
+    scale = _render_size(group, plate, (0, 250))
     over = _new_node(group, "CompositorNodeAlphaOver", "Alpha Over", (350, 100))
     viewer = _new_node(group, "CompositorNodeViewer", "Viewer", (600, 250))
-    group.links.new(plate.outputs["Image"], over.inputs["Background"])
+    group.links.new(scale.outputs["Image"], over.inputs["Background"])
     group.links.new(foreground, over.inputs["Foreground"])
     group.links.new(over.outputs["Image"], output.inputs[0])
     group.links.new(over.outputs["Image"], viewer.inputs["Image"])

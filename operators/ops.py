@@ -165,6 +165,17 @@ class VR_OT_setup_plate(bpy.types.Operator):
     bl_label = "Set Up From Plate"
     bl_options = {"REGISTER", "UNDO"}
 
+    ground: bpy.props.BoolProperty(
+        name="Shadow-Catcher Ground",
+        description="Put a shadow-catcher plane under the objects (unless the scene has a ground)",
+        default=True,
+    )
+    lens: bpy.props.BoolProperty(
+        name="Focal Length From Photo",
+        description="Set the camera's focal length from the photo's 35 mm-equivalent metadata",
+        default=True,
+    )
+
     @classmethod
     def poll(cls, context):
         scene = context.scene
@@ -180,14 +191,20 @@ class VR_OT_setup_plate(bpy.types.Operator):
         scene = context.scene
         image = plate.scene_plate(scene)
         try:
-            compositor.setup_from_plate(scene, image)
+            record = compositor.setup_from_plate(scene, image, ground=self.ground, lens=self.lens)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         plate.clear_cache()
-        self.report(
-            {"INFO"}, f"Render set to {image.size[0]}x{image.size[1]}, composited over {image.name}"
-        )
+        message = f"Render set to {image.size[0]}x{image.size[1]}, composited over {image.name}"
+        view = compositor.describe_view(record["view"])
+        if view:  # a tone-mapping view would repaint the plate in the composite
+            message += f"; {view} so the composite keeps the plate's colours"
+        if record["ground"]:
+            message += f"; shadow-catcher ground '{record['ground']['object']}' added"
+        self.report({"INFO"}, message)
+        for line in record["advice"]:
+            self.report({"WARNING"} if line.startswith("Warning") else {"INFO"}, line)
         return {"FINISHED"}
 
 

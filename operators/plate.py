@@ -6,7 +6,9 @@ cache of what was read. Stills are read once and kept while the image is unchang
 sequences and movies are read frame by frame through private images (`FramePlate`), so the
 artist's image is never touched.
 
-Colour: pixels are (H, W, 3) float32 scene-linear Rec.709, top row first (images.py);
+Colour: pixels are (H, W, 3) float32 in the file's scene-linear working space (Linear Rec.709,
+or in 5.x possibly Linear Rec.2020 / ACEScg), top row first (images.read_linear converts byte
+images from their colour space, colour_space.py);
 NaN/Inf values are replaced (engine ``colour.clean_plate``) and counted in the info line.
 
 Reading frame n of a sequence or a movie: ``Image.pixels`` has no frame argument (it shows the

@@ -8,8 +8,9 @@ when what they show changed: the map when its pixels were written (``maps.versio
 update hands its pixels over with `note_map`, so nothing is read back), the overlay when the
 plate, the object's bounds or the method's settings changed.
 
-Colour: maps and plates are scene-linear Rec.709; previews are sRGB-encoded (icons are shown
-as they are, without the scene's view transform), clipped to [0, 1].
+Colour: maps and plates are in the file's scene-linear working space; previews are sRGB-encoded
+by colour_space.to_srgb (icons are shown as they are, without the scene's view transform),
+clipped to [0, 1].
 """
 
 import bpy
@@ -17,10 +18,9 @@ import bpy.utils.previews
 import numpy as np
 
 from ..virtual_reflections import segment
-from ..virtual_reflections.colour import linear_to_srgb
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.overlay import draw_segmentation
-from . import images, maps, pipeline, plate, shading
+from . import colour_space, images, maps, pipeline, plate, shading
 
 PREVIEW_WIDTH = 256  # pixels across a preview image (maps: 256 x 128)
 OVERLAY = "overlay"  # the CREATED value of the full-size segmentation picture
@@ -57,7 +57,7 @@ def _set_preview(name, linear):
     preview = _collection.get(name) or _collection.new(name)
     h, w = linear.shape[:2]
     rgba = np.ones((h, w, 4), np.float32)
-    rgba[..., :3] = linear_to_srgb(np.clip(linear, 0.0, 1.0))[::-1]  # icons: rows bottom-up
+    rgba[..., :3] = colour_space.to_srgb(linear)[::-1]  # icons: rows bottom-up
     preview.image_size = (w, h)
     preview.image_pixels_float.foreach_set(rgba.ravel())
     _pixels[name] = linear

@@ -9,7 +9,7 @@ import textwrap
 
 import bpy
 
-from ..operators import generate, live, maps, plate, previews, sequence, shading
+from ..operators import compositor, generate, live, maps, plate, previews, sequence, shading
 from . import presets
 
 
@@ -53,6 +53,11 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         row = box.row(align=True)
         row.operator("vr.setup_plate", icon="CAMERA_DATA")
         row.operator("vr.undo_setup_plate", text="", icon="LOOP_BACK")
+        warning = compositor.view_warning(scene)
+        if warning:
+            col = box.column(align=True)
+            col.alert = True
+            _wrapped(col, warning, context, icon="ERROR")
 
         col = layout.column(align=True)
         col.label(text="Look")

@@ -25,6 +25,14 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
+# Linear Display P3 (DCI-P3 primaries, D65 white) -> CIE XYZ (D65), applied to column vectors
+# (xyz = M @ rgb): SMPTE EG 432-1. The add-on's colour conversion without OpenColorIO uses it
+# for Display P3 plates (Blender's API converts from XYZ D65 to the working space).
+DISPLAY_P3_TO_XYZ_D65 = np.array(
+    [[0.486571, 0.265668, 0.198217], [0.228975, 0.691739, 0.079287],
+     [0.000000, 0.045113, 1.043944]], dtype=np.float64
+)  # fmt: skip
+
 _SRGB8_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 
 

@@ -326,7 +326,9 @@ def test_setup_sets_render_background_film_and_compositor(comp, tmp_path):
     tree, result = compositor_output(scene)
     over = result.links[0].from_node
     assert over.name == "VR Alpha Over"
-    plate_node = over.inputs[0 if GROUPS else 1].links[0].from_node  # the background input
+    scale = over.inputs[0 if GROUPS else 1].links[0].from_node  # the background input
+    assert scale.bl_idname == "CompositorNodeScale"  # the plate stretched to the render size
+    plate_node = scale.inputs[0].links[0].from_node
     assert plate_node.bl_idname == "CompositorNodeImage" and plate_node.image == image
     foreground = over.inputs[1 if GROUPS else 2].links[0].from_node
     assert foreground.bl_idname in {"CompositorNodeRLayers", "NodeReroute"}
