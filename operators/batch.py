@@ -355,7 +355,7 @@ def render_shot(options: BatchOptions, started):
         scene.frame_set(options.frame)
     image = load_plate(options.plate)
     settings.plate_image = image
-    compositor.setup_from_plate(scene, image)
+    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
     _configure(scene, options)
     _render_size(scene)
     name = _shot_name(options)
@@ -777,7 +777,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     scene.frame_set(frames[0])
     image = source.load(frames[0])
     settings.plate_image = image
-    compositor.setup_from_plate(scene, image)
+    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
     _configure(scene, options)
     use_passes = not options.no_reflections and options.passes != 1
     own = None if use_passes else artist_compositor(scene)  # passes composite in NumPy

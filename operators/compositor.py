@@ -67,7 +67,7 @@ VIEW_SETTINGS = (
 # --- scene setup -------------------------------------------------------------------------------
 
 
-def setup_from_plate(scene, image, ground=False, lens=False) -> dict:
+def setup_from_plate(scene, image, ground=False, lens=False, view=True) -> dict:
     """Set `scene` up to render over the plate `image`; returns the record of what changed.
 
     Render size = the plate's (100 %), pixel aspect 1, transparent film, compositing on; the plate
@@ -78,7 +78,8 @@ def setup_from_plate(scene, image, ground=False, lens=False) -> dict:
     `undo_setup_from_plate` still returns to the state before the first call.
 
     The scene's colour management is set to give the plate back (`VIEW_SETTINGS`; what changed
-    is ``record["view"]``). With ``ground``, a shadow-catcher plane is put under the scene's
+    is ``record["view"]``); with ``view`` False (the batch) the view the artist chose is kept.
+    With ``ground``, a shadow-catcher plane is put under the scene's
     visible meshes (`add_ground`) unless the scene has a ground already. With ``lens``, the
     camera's focal length is set from the photo's 35 mm-equivalent focal length when its
     metadata has one (camera_match.py). ``record["advice"]`` says how to match the camera
@@ -101,7 +102,7 @@ def setup_from_plate(scene, image, ground=False, lens=False) -> dict:
     render.pixel_aspect_x = render.pixel_aspect_y = 1.0
     render.film_transparent = True
     render.use_compositing = True
-    record["view"] = _neutral_view(scene)
+    record["view"] = _neutral_view(scene) if view else {}
     record["camera"] = _show_background(scene.camera, image)
     record["ground"] = add_ground(scene) if ground else None
     record["lens"] = camera_match.match_lens(scene.camera, image, width, height) if lens else None
