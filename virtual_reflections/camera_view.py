@@ -436,14 +436,23 @@ def side_weight(directions, intrinsics, width: int) -> np.ndarray:
     0.5 straight ahead; behind the camera it returns linearly to 0.5 (straight behind: both
     halves alike)."""
     fx, _, cx, _ = intrinsics
-    d = np.asarray(directions, np.float64)
-    azimuth = np.arctan2(d[:, 0], d[:, 2])
-    left, right = math.atan(cx / fx), math.atan((width - cx) / fx)
-    ahead = np.where(
-        azimuth >= 0, np.sin(azimuth) / math.sin(left), np.sin(azimuth) / math.sin(right)
-    )
-    s = np.where(np.cos(azimuth) >= 0, np.clip(ahead, -1.0, 1.0), np.sin(azimuth))
-    return (0.5 + 0.5 * s).astype(np.float32)
+    left, right = math.sin(math.atan(cx / fx)), math.sin(math.atan((width - cx) / fx))
+    out = np.empty(len(directions), np.float32)
+    for a, b in _chunks(out.size):  # the sine of the azimuth without the trigonometry
+        d = np.asarray(directions[a:b], np.float64)
+        x, z = d[:, 0], d[:, 2]
+        r = np.hypot(x, z)
+        sin_az = np.divide(x, r, out=np.zeros_like(r), where=r > 0)
+        ahead = sin_az / np.where(x >= 0, left, right)
+        s = np.where(z >= 0, np.clip(ahead, -1.0, 1.0), sin_az)
+        out[a:b] = 0.5 + 0.5 * s
+    return out
+
+
+def _chunks(count: int, size: int = 32768):
+    """(start, stop) of consecutive blocks of `size` rows: per-texel work on large maps in
+    blocks keeps its temporaries small (cached, not fresh memory)."""
+    return ((a, min(a + size, count)) for a in range(0, count, size))
 
 
 def fill_taps(directions, base: int, side=None, up=None):
@@ -452,15 +461,21 @@ def fill_taps(directions, base: int, side=None, up=None):
     With `side` ((T,) weight of the left half, `side_weight`): (T, 4) taps, the left profile's
     two and the right profile's (rows `base` + FILL_BINS ..), weighted by side and 1 - side.
     Elevations are above the horizon whose normal is `up` (None: the camera's own)."""
-    elevation = elevation_deg(directions, up).astype(np.float32)
-    b = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
-    b0 = np.minimum(np.floor(b), FILL_BINS - 2)
-    frac = (b - b0).astype(np.float32)
-    index = (base + b0.astype(np.int32))[:, None] + np.arange(2, dtype=np.int32)
-    weight = np.stack((1 - frac, frac), -1).astype(np.float32)
+    count = len(directions)
+    index = np.empty((count, 2 if side is None else 4), np.int32)
+    weight = np.empty(index.shape, np.float32)
+    for a, b in _chunks(count):
+        elevation = elevation_deg(directions[a:b], up).astype(np.float32)
+        e = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
+        b0 = np.minimum(np.floor(e), FILL_BINS - 2)
+        frac = e - b0
+        index[a:b, 0] = base + b0.astype(np.int32)
+        index[a:b, 1] = index[a:b, 0] + 1
+        weight[a:b, 0], weight[a:b, 1] = 1 - frac, frac
     if side is None:
-        return index.astype(np.int32), weight
+        return index, weight
     side = np.asarray(side, np.float32)[:, None]
-    index = np.concatenate((index, index + FILL_BINS), axis=1)
-    weight = np.concatenate((weight * side, weight * (1 - side)), axis=1)
-    return index.astype(np.int32), weight.astype(np.float32)
+    index[:, 2:] = index[:, :2] + FILL_BINS
+    weight[:, 2:] = weight[:, :2] * (1 - side)
+    weight[:, :2] *= side
+    return index, weight

@@ -31,7 +31,7 @@ from . import camera_view, ground
 from .cache import bounded
 from .layouts import latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
-from .parallel import for_blocks
+from .parallel import CHUNK, for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
@@ -131,31 +131,37 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     """
     top = len(shapes) - 1
     lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
-    level = np.minimum(lo[:, None] + np.arange(2, dtype=np.int32), top)  # (T, 2)
-    share = np.empty(level.shape, np.float32)  # weight of each level
-    share[:, 1] = np.clip(lod - lo, 0.0, 1.0)
-    share[:, 0] = 1.0 - share[:, 1]
-    stride = np.array([s[1] + 2 for s in shapes], dtype=np.int32)[level]
-    scale = np.array([2.0**-i for i in range(top + 1)], dtype=np.float32)[level]
-    fx = px[:, None] * scale + 0.5  # +1 for the border, -0.5 to pixel centres
-    fy = py[:, None] * scale + 0.5
-    x0, y0 = np.floor(fx), np.floor(fy)
-    ax, ay = fx - x0, fy - y0
-    base = y0.astype(np.int32)
-    base *= stride
-    base += x0.astype(np.int32)
-    base += offsets.astype(np.int32)[level]  # the whole pyramid has < 2^31 rows
-    # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
-    index = index.reshape(base.shape + (4,))
-    np.add(base[..., None], np.array([0, 1, 0, 1], dtype=np.int32), out=index)
-    index[..., 2:] += stride[..., None]
-    weight = weight.reshape(base.shape + (4,))
-    bx, by = share - share * ax, 1 - ay  # the level's share folded into x
-    ax *= share
-    np.multiply(bx, by, out=weight[..., 0])
-    np.multiply(ax, by, out=weight[..., 1])
-    np.multiply(bx, ay, out=weight[..., 2])
-    np.multiply(ax, ay, out=weight[..., 3])
+    upper = np.clip(lod - lo, 0.0, 1.0).astype(np.float32)  # the next level's share
+    strides = np.array([s[1] + 2 for s in shapes], dtype=np.int32)
+    starts = offsets[: top + 1].astype(np.int32)  # the whole pyramid has < 2^31 rows
+    index = index.reshape(-1, 2, 4)
+    weight = weight.reshape(-1, 2, 4)
+    for j, share in ((0, 1.0 - upper), (1, upper)):
+        level = np.minimum(lo + j, top) if j else lo
+        stride = strides.take(level)
+        scale = np.ldexp(np.float32(1.0), -level).astype(np.float32)
+        fx = px * scale + np.float32(0.5)  # +1 for the border, -0.5 to pixel centres
+        fy = py * scale + np.float32(0.5)
+        x0, y0 = np.floor(fx), np.floor(fy)
+        ax, ay = fx - x0, fy - y0
+        base = y0.astype(np.int32)
+        base *= stride
+        base += x0.astype(np.int32)
+        base += starts.take(level)
+        # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
+        tap = index[:, j]
+        tap[:, 0] = base
+        tap[:, 1] = base + 1
+        base += stride
+        tap[:, 2] = base
+        tap[:, 3] = base + 1
+        bx, by = share - share * ax, 1 - ay  # the level's share folded into x
+        ax *= share
+        w = weight[:, j]
+        np.multiply(bx, by, out=w[:, 0])
+        np.multiply(ax, by, out=w[:, 1])
+        np.multiply(bx, ay, out=w[:, 2])
+        np.multiply(ax, ay, out=w[:, 3])
 
 
 def _frozen(*arrays):
@@ -179,7 +185,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             directions[a:b], width, height, intrinsics
         )
 
-    for_blocks(project, count)
+    for_blocks(project, count, max_rows=CHUNK)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
@@ -252,7 +258,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         _bilinear(px[a:b], py[a:b], lod[near[a:b]], shapes, offsets, idx, ext_weight[a:b])
         ext_index[a:b] = idx
 
-    for_blocks(trilinear, near.size)
+    for_blocks(trilinear, near.size, max_rows=CHUNK)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
     if filled:
         fill_index, fill_weight = camera_view.fill_taps(
@@ -312,7 +318,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     def project(a, b):
         position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
 
-    for_blocks(project, count)
+    for_blocks(project, count, max_rows=CHUNK)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
@@ -327,7 +333,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     def taps(a, b):
         _bilinear(px[a:b], py[a:b], lod[a:b], shapes, offsets, index[a:b], weight[a:b])
 
-    for_blocks(taps, count)
+    for_blocks(taps, count, max_rows=CHUNK)
     for a in (index, weight, position, lod):
         a.flags.writeable = False
     return LookupTable(
