@@ -81,7 +81,7 @@ def clamp_to_view(directions, width, height, intrinsics):
     position = np.stack((np.clip(px, 0.0, width), np.clip(py, 0.0, height)), axis=-1)
     cos_e = np.cos(e)
     clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
-    cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
+    cosine = np.clip(np.einsum("...i,...i->...", d, clamped) / norm, -1.0, 1.0)
     angle = np.arccos(cosine)
     angle[cosine > 1.0 - 1e-6] = 0.0  # float32 round-off inside the plate's view
     return position.astype(np.float32), angle.astype(np.float32)
@@ -264,7 +264,7 @@ def elevation_deg(directions, up=None) -> np.ndarray:
     """Elevation in degrees of (..., 3) directions above the horizon whose normal is ``up``
     (camera frame), or above the camera's own horizontal plane (up = +Y) without one."""
     d = np.asarray(directions, np.float64)
-    norm = np.sqrt((d * d).sum(-1))
+    norm = np.sqrt(np.einsum("...i,...i->...", d, d))
     norm = np.where(norm > 0, norm, 1.0)
     if up is None:
         height = d[..., 1]
