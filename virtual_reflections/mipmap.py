@@ -45,7 +45,7 @@ def _halve(src: np.ndarray, dst: np.ndarray) -> None:
     and cached instead of being fresh memory as large as the level.
     """
     h, w, _ = src.shape
-    he, we = h - h % 2, w - w % 2
+    we = w - w % 2
     half = dst.shape[0]
 
     def block(a, b):

@@ -204,7 +204,6 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         camera_view.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
     )
     near = np.flatnonzero(unseen & (weight_ext > 0))
-    far = np.flatnonzero(unseen & (weight_ext <= 0))
     used = [int(lod[near].min()) if near.size else top, int(seen_level.min()) if seen.size else top]
     deepest = [
         int(lod[near].max()) + 1 if near.size else 0,
@@ -260,30 +259,26 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
 
     for_blocks(trilinear, near.size, max_rows=CHUNK)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
-    if filled:
-        fill_index, fill_weight = camera_view.fill_taps(
-            directions[near], fill.base, None if side is None else side[near], params.up
-        )
-        near_index[:, 8:] = fill_index
-        near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
     groups = []
+    if filled:
+        # The fill for every texel, in order: one gather without a scatter. The texels near
+        # the plate's view and those it sees are written over it by the groups after it.
+        all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
+        near_index[:, 8:] = all_index[near]
+        near_weight[:, 8:] = all_weight[near] * (1.0 - weight_ext[near, None])
+        groups.append((near, near_index, near_weight))
     if seen.size:
         seen_index, seen_weight = camera_view.supersample_taps(
             layout, size, seen, intrinsics, seen_level, shapes, offsets
         )
         groups.append((seen, seen_index, seen_weight))
-    if far.size:
-        groups.append(
-            (
-                far,
-                *camera_view.fill_taps(
-                    directions[far], fill.base, None if side is None else side[far], params.up
-                ),
-            )
-        )
+    if filled:
+        main = (None, all_index, all_weight)
+    else:
+        main, groups = (near, near_index, near_weight), groups
     for g in groups:
         _frozen(*g)
-    _frozen(near, near_index, near_weight, position, lod)
+    _frozen(*main, position, lod)
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -291,11 +286,11 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         shape=shape,
         levels=levels,
         first_level=first,
-        index=near_index,
-        weight=near_weight,
+        index=main[1],
+        weight=main[2],
         position=position,
         lod=lod.reshape(shape),
-        texels=near,
+        texels=main[0],
         groups=tuple(groups),
         fill=fill,
     )
@@ -386,6 +381,8 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     taken[ids] = True
 
     def without(texels, idx, wts):
+        if texels is None:  # every texel (the fill): the groups after it write over these
+            return texels, idx, wts
         keep = ~taken[texels]
         return texels[keep], idx[keep], wts[keep]
 
