@@ -87,6 +87,49 @@ def clamp_to_view(directions, width, height, intrinsics):
     return position.astype(np.float32), angle.astype(np.float32)
 
 
+ANGLE_EPS = math.acos(1.0 - 1e-6)  # angles below count as inside the plate's view
+
+
+def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
+    """`clamp_to_view` for the texel centres of a `size`-wide lat-long (the camera frame's),
+    rows `rows` (a slice; default all): ((n, 2) float32 positions, (n,) float32 angles), n
+    texels row by row.
+
+    A lat-long texel's azimuth is its column's and its elevation its row's, and the clamped
+    elevation is the row's or one of the column's two limits: every trigonometric function
+    is taken per row or per column, the map's texels only combine them."""
+    fx, fy, cx, cy = intrinsics
+    h = size // 2
+    rows = range(h)[rows or slice(None)]
+    el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
+    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)  # (W,) + toward the plate's left
+    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
+    cos_a = np.cos(a)
+    lo = np.arctan((cy - height) / fy * cos_a)  # the frame's bottom and top at this azimuth
+    hi = np.arctan(cy / fy * cos_a)
+    px = np.clip(cx - fx * np.tan(a), 0.0, width).astype(np.float32)
+    below, above = el[:, None] < lo, el[:, None] > hi  # (n, W)
+
+    def pick(f):  # f(e) for the clamped elevation, from per-row and per-column values
+        return np.where(below, f(lo), np.where(above, f(hi), f(el)[:, None])).astype(np.float32)
+
+    py = cy - (fy / cos_a).astype(np.float32) * pick(np.tan)
+    position = np.empty((len(rows), size, 2), np.float32)
+    position[..., 0] = px
+    position[..., 1] = np.clip(py, 0.0, height)
+    # The angle between the direction and its clamped twin, well conditioned for small ones:
+    # sin^2(angle / 2) = sin^2((el - e) / 2) + cos(el) cos(e) sin^2((az - a) / 2).
+    off = np.where(below, el[:, None] - lo, np.where(above, el[:, None] - hi, 0.0))
+    half = np.sin(0.5 * off.astype(np.float32))
+    half *= half
+    side = np.sin(0.5 * (az - a)) ** 2  # (W,)
+    half += pick(np.cos) * (np.cos(el)[:, None] * side).astype(np.float32)
+    np.sqrt(np.clip(half, 0.0, 1.0, out=half), out=half)
+    angle = 2.0 * np.arcsin(half)
+    angle[angle < ANGLE_EPS] = 0.0  # as clamp_to_view: round-off inside the plate's view
+    return position.reshape(-1, 2), angle.ravel()
+
+
 def plate_positions(
     directions: np.ndarray,
     width: int,
@@ -466,16 +509,47 @@ def fill_taps(directions, base: int, side=None, up=None):
     weight = np.empty(index.shape, np.float32)
     for a, b in _chunks(count):
         elevation = elevation_deg(directions[a:b], up).astype(np.float32)
-        e = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
-        b0 = np.minimum(np.floor(e), FILL_BINS - 2)
-        frac = e - b0
-        index[a:b, 0] = base + b0.astype(np.int32)
-        index[a:b, 1] = index[a:b, 0] + 1
-        weight[a:b, 0], weight[a:b, 1] = 1 - frac, frac
+        _taps_at(elevation, base, None if side is None else side[a:b], index[a:b], weight[a:b])
+    return index, weight
+
+
+def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None):
+    """`fill_taps` for the texel centres of a `size`-wide lat-long, rows `rows` (a slice;
+    default all), texels row by row; `side`: (size,) the left half's weight per column (a
+    texel's azimuth is its column's: `side_weight` of any of its texels)."""
+    h = size // 2
+    rows = range(h)[rows or slice(None)]
+    el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
+    if up is None:
+        elevation = np.broadcast_to(np.degrees(el)[:, None], (len(rows), size))
+    else:  # d . up = cos(el) (sin(az) ux + cos(az) uz) + sin(el) uy, d a unit vector
+        ux, uy, uz = np.asarray(up, np.float64) / np.linalg.norm(up)
+        az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
+        across = (np.sin(az) * ux + np.cos(az) * uz).astype(np.float32)
+        height = np.cos(el).astype(np.float32)[:, None] * across
+        height += np.float32(uy) * np.sin(el).astype(np.float32)[:, None]
+        elevation = np.degrees(np.arcsin(np.clip(height, -1.0, 1.0)))
+    count = elevation.size
+    index = np.empty((count, 2 if side is None else 4), np.int32)
+    weight = np.empty(index.shape, np.float32)
+    if side is not None:
+        side = np.broadcast_to(np.asarray(side, np.float32), (len(rows), size)).ravel()
+    _taps_at(elevation.astype(np.float32).ravel(), base, side, index, weight)
+    return index, weight
+
+
+def _taps_at(elevation, base, side, index, weight) -> None:
+    """Write the fill's taps and weights (see `fill_taps`) for (n,) float32 elevations in
+    degrees into index (n, 2 or 4) int32 and weight (n, 2 or 4) float32."""
+    e = np.clip(elevation + np.float32(90.0), 0, FILL_BINS - 1)
+    b0 = np.minimum(np.floor(e), FILL_BINS - 2)
+    frac = e - b0
+    index[:, 0] = base + b0.astype(np.int32)
+    index[:, 1] = index[:, 0] + 1
+    weight[:, 0], weight[:, 1] = 1 - frac, frac
     if side is None:
-        return index, weight
+        return
     side = np.asarray(side, np.float32)[:, None]
     index[:, 2:] = index[:, :2] + FILL_BINS
     weight[:, 2:] = weight[:, :2] * (1 - side)
     weight[:, :2] *= side
-    return index, weight

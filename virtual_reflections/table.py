@@ -180,12 +180,24 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
 
-    def project(a, b):
-        position[a:b], angle[a:b] = camera_view.clamp_to_view(
-            directions[a:b], width, height, intrinsics
-        )
+    if layout == "latlong":  # row by row, the trigonometry per row and column
 
-    for_blocks(project, count, max_rows=CHUNK)
+        def project(a, b):
+            rows = slice(a, b)
+            texels = slice(a * size, b * size)
+            position[texels], angle[texels] = camera_view.clamp_to_view_latlong(
+                size, width, height, intrinsics, rows
+            )
+
+        for_blocks(project, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+    else:
+
+        def project(a, b):
+            position[a:b], angle[a:b] = camera_view.clamp_to_view(
+                directions[a:b], width, height, intrinsics
+            )
+
+        for_blocks(project, count, max_rows=CHUNK)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
@@ -241,7 +253,9 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             camera_view.sky_share(window, counts) if params.up is not None else None,
             params.sky_gain,
         )
-        side = camera_view.side_weight(directions, intrinsics, width) if sides == 2 else None
+        # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
+        toward = directions[:size] if layout == "latlong" else directions
+        side = camera_view.side_weight(toward, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
     # Near the plate's view: the blurred edge extension (8 trilinear taps) faded into the fill.
@@ -263,7 +277,18 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     if filled:
         # The fill for every texel, in order: one gather without a scatter. The texels near
         # the plate's view and those it sees are written over it by the groups after it.
-        all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
+        if layout == "latlong":  # row by row, a texel's azimuth its column's
+            all_index = np.empty((count, 2 * fill.sides), np.int32)
+            all_weight = np.empty(all_index.shape, np.float32)
+            def fill_rows(a, b):
+                texels = slice(a * size, b * size)
+                all_index[texels], all_weight[texels] = camera_view.fill_taps_latlong(
+                    size, fill.base, side, params.up, slice(a, b)
+                )
+
+            for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+        else:
+            all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
         near_index[:, 8:] = all_index[near]
         near_weight[:, 8:] = all_weight[near] * (1.0 - weight_ext[near, None])
         groups.append((near, near_index, near_weight))
