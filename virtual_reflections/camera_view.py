@@ -186,13 +186,21 @@ def seen_footprints(layout, size, directions, width, height, intrinsics):
     pixel about the centre's projection and clipped to the plate).
     """
     fx, fy, cx, cy = intrinsics
-    d = np.asarray(directions, np.float64)
-    z = d[:, 2]
-    ahead = z > 1e-9
-    zs = np.where(ahead, z, 1.0)
-    px = cx - fx * d[:, 0] / zs
-    py = cy - fy * d[:, 1] / zs
-    ids = np.flatnonzero(ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height))
+
+    def project(d):
+        d = np.asarray(d, np.float64)
+        z = d[:, 2]
+        ahead = z > 1e-9
+        zs = np.where(ahead, z, 1.0)
+        px = cx - fx * d[:, 0] / zs
+        py = cy - fy * d[:, 1] / zs
+        return px, py, ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height)
+
+    ids = np.concatenate(
+        [a + np.flatnonzero(project(directions[a:b])[2]) for a, b in _chunks(len(directions))]
+        or [np.zeros(0, np.int64)]
+    )
+    px, py, _ = project(directions[ids])
     corners = {}
     ok = np.ones(ids.size, bool)
     for dx in (-0.5, 0.5):
@@ -202,7 +210,7 @@ def seen_footprints(layout, size, directions, width, height, intrinsics):
             cz = np.where(c[:, 2] > 1e-9, c[:, 2], 1.0)
             corners[dx, dy] = (cx - fx * c[:, 0] / cz, cy - fy * c[:, 1] / cz)
     ids = ids[ok]
-    px, py = px[ids], py[ids]
+    px, py = px[ok], py[ok]
 
     def side(a, b, axis):
         return 0.5 * (corners[a][axis][ok] + corners[b][axis][ok])
@@ -267,28 +275,33 @@ def mean_taps(positions, level, shapes, offsets):
     ``positions`` (k pairs of (S,) continuous plate coordinates px, py, at level 0's scale),
     read on mip ``level`` (S,) of the flat bordered pyramid with level ``offsets``."""
     level = np.asarray(level, np.int64)
-    scale = 2.0 ** -level.astype(np.float64)
-    widths = np.array([s[1] for s in shapes], np.int32)[level]
-    heights = np.array([s[0] for s in shapes], np.int32)[level]
-    stride = widths + 2  # a bordered level's row length
-    base = np.asarray(offsets, np.int64)[level].astype(np.int32)
     count = level.size
     index = np.empty((count, len(positions), 4), np.int32)
     weight = np.empty((count, len(positions), 4), np.float32)
     share = np.float32(1.0 / len(positions))
-    for k, (px, py) in enumerate(positions):
-        u, v = px * scale - 0.5, py * scale - 0.5
-        i0, j0 = np.floor(u), np.floor(v)
-        au, av = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
-        i0, j0 = i0.astype(np.int32), j0.astype(np.int32)
-        c0, c1 = np.clip(i0, -1, widths) + 1, np.clip(i0 + 1, -1, widths) + 1
-        r0 = base + (np.clip(j0, -1, heights) + 1) * stride
-        r1 = base + (np.clip(j0 + 1, -1, heights) + 1) * stride
-        index[:, k, 0], index[:, k, 1] = r0 + c0, r0 + c1
-        index[:, k, 2], index[:, k, 3] = r1 + c0, r1 + c1
-        bu, bv = 1.0 - au, 1.0 - av
-        weight[:, k, 0], weight[:, k, 1] = bv * bu * share, bv * au * share
-        weight[:, k, 2], weight[:, k, 3] = av * bu * share, av * au * share
+    widths_all = np.array([s[1] for s in shapes], np.int32)
+    heights_all = np.array([s[0] for s in shapes], np.int32)
+    for a, b in _chunks(count, 4096):  # the texels' taps written while in the cache
+        lv = level[a:b]
+        scale = 2.0 ** -lv.astype(np.float64)
+        widths, heights = widths_all[lv], heights_all[lv]
+        stride = widths + 2  # a bordered level's row length
+        base = np.asarray(offsets, np.int64)[lv].astype(np.int32)
+        for k, (px, py) in enumerate(positions):
+            u, v = px[a:b] * scale - 0.5, py[a:b] * scale - 0.5
+            i0, j0 = np.floor(u), np.floor(v)
+            au, av = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
+            i0, j0 = i0.astype(np.int32), j0.astype(np.int32)
+            c0 = np.minimum(np.maximum(i0, -1), widths) + 1
+            c1 = np.minimum(np.maximum(i0 + 1, -1), widths) + 1
+            r0 = base + (np.minimum(np.maximum(j0, -1), heights) + 1) * stride
+            r1 = base + (np.minimum(np.maximum(j0 + 1, -1), heights) + 1) * stride
+            tap, w = index[a:b, k], weight[a:b, k]
+            tap[:, 0], tap[:, 1] = r0 + c0, r0 + c1
+            tap[:, 2], tap[:, 3] = r1 + c0, r1 + c1
+            bu, bv = 1.0 - au, 1.0 - av
+            w[:, 0], w[:, 1] = bv * bu * share, bv * au * share
+            w[:, 2], w[:, 3] = av * bu * share, av * au * share
     return index.reshape(count, -1), weight.reshape(count, -1)
 
 
@@ -513,10 +526,11 @@ def fill_taps(directions, base: int, side=None, up=None):
     return index, weight
 
 
-def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None):
+def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None, out=None):
     """`fill_taps` for the texel centres of a `size`-wide lat-long, rows `rows` (a slice;
     default all), texels row by row; `side`: (size,) the left half's weight per column (a
-    texel's azimuth is its column's: `side_weight` of any of its texels)."""
+    texel's azimuth is its column's: `side_weight` of any of its texels). `out`: (index,
+    weight) to write into."""
     h = size // 2
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
@@ -530,8 +544,10 @@ def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None):
         height += np.float32(uy) * np.sin(el).astype(np.float32)[:, None]
         elevation = np.degrees(np.arcsin(np.clip(height, -1.0, 1.0)))
     count = elevation.size
-    index = np.empty((count, 2 if side is None else 4), np.int32)
-    weight = np.empty(index.shape, np.float32)
+    if out is None:
+        out = np.empty((count, 2 if side is None else 4), np.int32), None
+        out = out[0], np.empty(out[0].shape, np.float32)
+    index, weight = out
     if side is not None:
         side = np.broadcast_to(np.asarray(side, np.float32), (len(rows), size)).ravel()
     _taps_at(elevation.astype(np.float32).ravel(), base, side, index, weight)
@@ -544,12 +560,17 @@ def _taps_at(elevation, base, side, index, weight) -> None:
     e = np.clip(elevation + np.float32(90.0), 0, FILL_BINS - 1)
     b0 = np.minimum(np.floor(e), FILL_BINS - 2)
     frac = e - b0
-    index[:, 0] = base + b0.astype(np.int32)
-    index[:, 1] = index[:, 0] + 1
-    weight[:, 0], weight[:, 1] = 1 - frac, frac
+    first = base + b0.astype(np.int32)
+    index[:, 0], index[:, 1] = first, first + 1
     if side is None:
+        weight[:, 0], weight[:, 1] = 1 - frac, frac
         return
-    side = np.asarray(side, np.float32)[:, None]
-    index[:, 2:] = index[:, :2] + FILL_BINS
-    weight[:, 2:] = weight[:, :2] * (1 - side)
-    weight[:, :2] *= side
+    # Column by column: NumPy is slow on (n, 2) slices (its inner loop is 2 long).
+    index[:, 2], index[:, 3] = first + FILL_BINS, first + (FILL_BINS + 1)
+    side = np.asarray(side, np.float32)
+    other = 1 - side
+    low = 1 - frac
+    np.multiply(low, side, out=weight[:, 0])
+    np.multiply(frac, side, out=weight[:, 1])
+    np.multiply(low, other, out=weight[:, 2])
+    np.multiply(frac, other, out=weight[:, 3])

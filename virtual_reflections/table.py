@@ -80,12 +80,13 @@ class Fill:
     sky_gain: float = 1.0
 
 
-def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
+def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> np.ndarray:
     """Squared distance on the plate to the nearer neighbour texel along `axis`, per texel.
 
     q: (H, W, 2) positions. Taking the nearer of the two neighbours keeps a texel next to a
     discontinuity (the seams between the paper's front-face triangles) from being blurred
-    across it. `block` > 0 cuts the axis into blocks (cube faces) with no neighbours across.
+    across it. `block` > 0 cuts the axis into blocks (cube faces) with no neighbours across;
+    `start`: the index along `axis` of q's first texel (q a slab of the map).
     """
     n = q.shape[axis]
     diff = np.diff(q, axis=axis, append=np.take(q, [0], axis=axis))  # last: wrap-around step
@@ -99,7 +100,7 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
         last[axis] = slice(0, 1)
         behind[tuple(last)] = np.inf
     if block:
-        cut = np.arange(n)
+        cut = np.arange(start, start + n)
         ahead = np.where(_along(cut % block == block - 1, axis, step.ndim), np.inf, ahead)
         behind = np.where(_along(cut % block == 0, axis, step.ndim), np.inf, behind)
     span = np.minimum(ahead, behind)
@@ -114,12 +115,21 @@ def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
 
 
 def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
-    """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32."""
+    """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32.
+    Computed in slabs of rows (each with its neighbour rows) over the cores."""
     latlong = layout == "latlong"
-    across = _spans(position, 1, wrap=latlong, block=0)
-    down = _spans(position, 0, wrap=False, block=0 if latlong else size)
-    squared = np.maximum(np.maximum(across, down), 1e-12)
-    return 0.5 * np.log2(squared, dtype=np.float32)
+    height, width = position.shape[:2]
+    lod = np.empty((height, width), np.float32)
+
+    def rows(a, b):
+        across = _spans(position[a:b], 1, wrap=latlong, block=0)
+        lo, hi = max(a - 1, 0), min(b + 1, height)
+        down = _spans(position[lo:hi], 0, wrap=False, block=0 if latlong else size, start=lo)
+        squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
+        lod[a:b] = 0.5 * np.log2(squared, dtype=np.float32)
+
+    for_blocks(rows, height, min_rows=16, max_rows=max(1, CHUNK // width))
+    return lod
 
 
 def _bilinear(px, py, lod, shapes, offsets, index, weight):
@@ -282,8 +292,13 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             all_weight = np.empty(all_index.shape, np.float32)
             def fill_rows(a, b):
                 texels = slice(a * size, b * size)
-                all_index[texels], all_weight[texels] = camera_view.fill_taps_latlong(
-                    size, fill.base, side, params.up, slice(a, b)
+                camera_view.fill_taps_latlong(
+                    size,
+                    fill.base,
+                    side,
+                    params.up,
+                    slice(a, b),
+                    out=(all_index[texels], all_weight[texels]),
                 )
 
             for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
