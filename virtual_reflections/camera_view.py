@@ -526,11 +526,15 @@ def fill_taps(directions, base: int, side=None, up=None):
     return index, weight
 
 
-def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None, out=None):
-    """`fill_taps` for the texel centres of a `size`-wide lat-long, rows `rows` (a slice;
-    default all), texels row by row; `side`: (size,) the left half's weight per column (a
-    texel's azimuth is its column's: `side_weight` of any of its texels). `out`: (index,
-    weight) to write into."""
+FILL_STEPS = 64  # a lat-long's fill is read at elevations rounded to 1/64 of a bin
+
+
+def fill_bins_latlong(size: int, up=None, rows=None, out=None):
+    """Where the fill profile is read for the texel centres of a `size`-wide lat-long, rows
+    `rows` (a slice; default all), texels row by row: (n,) uint16, the elevation in bins
+    above -90 degrees times FILL_STEPS (rounded: 0.008 degrees at most), the compact form of
+    `fill_taps` (whose side weight is the texel's column's). `out`: (n,) uint16 to write
+    into."""
     h = size // 2
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
@@ -543,15 +547,67 @@ def fill_taps_latlong(size: int, base: int, side=None, up=None, rows=None, out=N
         height = np.cos(el).astype(np.float32)[:, None] * across
         height += np.float32(uy) * np.sin(el).astype(np.float32)[:, None]
         elevation = np.degrees(np.arcsin(np.clip(height, -1.0, 1.0)))
-    count = elevation.size
-    if out is None:
-        out = np.empty((count, 2 if side is None else 4), np.int32), None
-        out = out[0], np.empty(out[0].shape, np.float32)
-    index, weight = out
-    if side is not None:
-        side = np.broadcast_to(np.asarray(side, np.float32), (len(rows), size)).ravel()
-    _taps_at(elevation.astype(np.float32).ravel(), base, side, index, weight)
+    e = np.clip(elevation.astype(np.float32).ravel() + np.float32(90.0), 0, FILL_BINS - 1)
+    e *= np.float32(FILL_STEPS)
+    out = np.empty(e.size, np.uint16) if out is None else out
+    np.rint(e, out=e)
+    out[:] = e
+    return out
+
+
+def fill_bin_taps(steps, base: int, side=None):
+    """`fill_taps` (index (n, 2 or 4) int32, weight float32) from the compact form
+    (`fill_bins_latlong`; side: (n,) the left half's weight or None)."""
+    index = np.empty((steps.size, 2 if side is None else 4), np.int32)
+    weight = np.empty(index.shape, np.float32)
+    bins = np.minimum(steps // FILL_STEPS, FILL_BINS - 2).astype(np.int32)
+    upper = (steps - bins * FILL_STEPS).astype(np.float32) * np.float32(1.0 / FILL_STEPS)
+    first = base + bins
+    index[:, 0], index[:, 1] = first, first + 1
+    lower = 1 - upper
+    if side is None:
+        weight[:, 0], weight[:, 1] = lower, upper
+        return index, weight
+    index[:, 2], index[:, 3] = first + FILL_BINS, first + (FILL_BINS + 1)
+    side = np.asarray(side, np.float32)
+    other = 1 - side
+    np.multiply(lower, side, out=weight[:, 0])
+    np.multiply(upper, side, out=weight[:, 1])
+    np.multiply(lower, other, out=weight[:, 2])
+    np.multiply(upper, other, out=weight[:, 3])
     return index, weight
+
+
+def fill_lookup(profile) -> np.ndarray:
+    """The fill profile (sides, FILL_BINS, 3) float32 interpolated at every step of
+    `fill_bins_latlong`: (sides, (FILL_BINS - 1) * FILL_STEPS + 1, 3) float32, per frame."""
+    p = np.ascontiguousarray(profile, np.float32)
+    sides = p.shape[0]
+    out = np.empty((sides, (FILL_BINS - 1) * FILL_STEPS + 1, 3), np.float32)
+    t = (np.arange(FILL_STEPS) * (1.0 / FILL_STEPS)).astype(np.float32)
+    step = p[:, 1:] - p[:, :-1]  # (sides, FILL_BINS - 1, 3)
+    # Steps last while computing (long inner loops), then into place.
+    ramp = step[..., None] * t  # (sides, FILL_BINS - 1, 3, FILL_STEPS)
+    ramp += p[:, :-1, :, None]
+    out[:, :-1].reshape(sides, FILL_BINS - 1, FILL_STEPS, 3)[:] = ramp.transpose(0, 1, 3, 2)
+    out[:, -1] = p[:, -1]
+    return out
+
+
+def fill_values(steps, side, lookup, out) -> None:
+    """The fill at lat-long texels from the compact form: out (n, 3) float32 = `lookup`
+    (`fill_lookup`) at each texel's steps (`fill_bins_latlong`), the two sides blended by
+    `side` ((3 W,) float32: the left side's weight per column, repeated for R, G, B; n a
+    whole number of rows), or one side's (side None)."""
+    if side is None:
+        np.take(lookup[0], steps, axis=0, out=out)
+        return
+    np.take(lookup[1], steps, axis=0, out=out)
+    left = np.take(lookup[0], steps, axis=0)
+    left -= out
+    flat = left.reshape(-1, side.size)  # rows of 3 W floats: long inner loops
+    flat *= side
+    out += left
 
 
 def _taps_at(elevation, base, side, index, weight) -> None:

@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 
-from .camera_view import FILL_BINS, fill_profile
+from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
@@ -68,6 +68,16 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             sky_gain=fill.sky_gain,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
+    if table.fill_texels is not None:  # the fill everywhere, the groups written over it
+        steps, side = table.fill_texels
+        lookup = fill_lookup(source[fill.base : fill.base + extra].reshape(-1, FILL_BINS, 3))
+        width = table.shape[1]
+
+        def fill_rows(a, b):
+            texels = slice(a * width, b * width)
+            fill_values(steps[texels], side, lookup, out[texels])
+
+        for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
     for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))

@@ -61,6 +61,9 @@ class LookupTable:
     texels: np.ndarray | None = None
     groups: tuple = ()
     fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
+    # A lat-long's fill for every texel, before the groups (written over it): (steps (T,)
+    # uint16, side (3 W,) float32 or None), see camera_view.fill_values.
+    fill_texels: tuple | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -284,41 +287,35 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     for_blocks(trilinear, near.size, max_rows=CHUNK)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
     groups = []
+    fill_texels = None
     if filled:
-        # The fill for every texel, in order: one gather without a scatter. The texels near
-        # the plate's view and those it sees are written over it by the groups after it.
-        if layout == "latlong":  # row by row, a texel's azimuth its column's
-            all_index = np.empty((count, 2 * fill.sides), np.int32)
-            all_weight = np.empty(all_index.shape, np.float32)
+        if layout == "latlong":  # compact: 2 bytes a texel, read per frame by fill_values
+            fill_steps = np.empty(count, np.uint16)
+
             def fill_rows(a, b):
                 texels = slice(a * size, b * size)
-                camera_view.fill_taps_latlong(
-                    size,
-                    fill.base,
-                    side,
-                    params.up,
-                    slice(a, b),
-                    out=(all_index[texels], all_weight[texels]),
-                )
+                camera_view.fill_bins_latlong(size, params.up, slice(a, b), out=fill_steps[texels])
 
             for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
-        else:
+            fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
+            near_side = None if side is None else side[near % size]
+            near_fill = camera_view.fill_bin_taps(fill_steps[near], fill.base, near_side)
+        else:  # the fill's taps for every texel, in order, the first group
             all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
-        near_index[:, 8:] = all_index[near]
-        near_weight[:, 8:] = all_weight[near] * (1.0 - weight_ext[near, None])
-        groups.append((near, near_index, near_weight))
+            near_fill = all_index[near], all_weight[near]
+        near_index[:, 8:] = near_fill[0]
+        near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
     if seen.size:
         seen_index, seen_weight = camera_view.supersample_taps(
             layout, size, seen, intrinsics, seen_level, shapes, offsets
         )
         groups.append((seen, seen_index, seen_weight))
-    if filled:
-        main = (None, all_index, all_weight)
-    else:
-        main, groups = (near, near_index, near_weight), groups
+    main = (near, near_index, near_weight)
+    if filled and fill_texels is None:  # the fill's taps first, the others written over them
+        main, groups = (None, all_index, all_weight), [main, *groups]
     for g in groups:
         _frozen(*g)
-    _frozen(*main, position, lod)
+    _frozen(*main, position, lod, *(fill_texels or ()))
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -333,6 +330,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         texels=main[0],
         groups=tuple(groups),
         fill=fill,
+        fill_texels=fill_texels,
     )
 
 
