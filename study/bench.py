@@ -188,7 +188,7 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
                 table = _table(m, width, height, size)
                 row[f"cold {m}"] = 1000.0 * (time.perf_counter() - t)
                 row[f"mb {m}"] = nbytes(table) / 2**20
-                row[f"apply {m}"] = median_ms(lambda t=table: apply_table(t, plate), repeat)
+                row[f"apply {m}"] = median_ms(lambda t=table, p=plate: apply_table(t, p), repeat)
                 del table
             rows.append(row)
             print(
@@ -203,15 +203,36 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
         mine = [r for r in rows if r["plate"] == name]
         x = [r["width"] for r in mine]
         for m, ls in (("paper", "-"), ("camera", "--")):
-            axes[0].plot(x, [r[f"apply {m}"] for r in mine], ls, marker=styles[name],
-                         label=f"ours {m}, {name} plate")
-            axes[1].plot(x, [r[f"cold {m}"] for r in mine], ls, marker=styles[name],
-                         label=f"ours {m}, {name} plate")
-            axes[2].plot(x, [r[f"mb {m}"] for r in mine], ls, marker=styles[name],
-                         label=f"ours {m}, {name} plate")
+            axes[0].plot(
+                x,
+                [r[f"apply {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
+            axes[1].plot(
+                x,
+                [r[f"cold {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
+            axes[2].plot(
+                x,
+                [r[f"mb {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
         if "peer" in mine[0]:
-            axes[0].plot(x, [r["peer"] for r in mine], "k:", marker="x", lw=2,
-                         label="peer: py360convert c2e (cube faces)")
+            axes[0].plot(
+                x,
+                [r["peer"] for r in mine],
+                "k:",
+                marker="x",
+                lw=2,
+                label="peer: py360convert c2e (cube faces)",
+            )
     titles = ("per frame (table cached)", "cold table (new bounds or camera)", "table memory")
     for ax, title, unit in zip(axes, titles, ("ms", "ms", "MB")):
         ax.set_xscale("log", base=2)

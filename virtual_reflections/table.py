@@ -54,8 +54,6 @@ class LookupTable:
     first_level: int
     index: np.ndarray
     weight: np.ndarray
-    position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
-    lod: np.ndarray  # (H, W) float32 mip level of each texel
     # index/weight hold the taps of the texels `texels` ((n,) int64 flat indices; None: every
     # texel in order). `groups`: further (texels, index (n, K), weight (n, K)) with other K.
     texels: np.ndarray | None = None
@@ -315,7 +313,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         main, groups = (None, all_index, all_weight), [main, *groups]
     for g in groups:
         _frozen(*g)
-    _frozen(*main, position, lod, *(fill_texels or ()))
+    _frozen(*main, *(fill_texels or ()))
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -325,8 +323,6 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         first_level=first,
         index=main[1],
         weight=main[2],
-        position=position,
-        lod=lod.reshape(shape),
         texels=main[0],
         groups=tuple(groups),
         fill=fill,
@@ -367,7 +363,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         _bilinear(px[a:b], py[a:b], lod[a:b], shapes, offsets, index[a:b], weight[a:b])
 
     for_blocks(taps, count, max_rows=CHUNK)
-    for a in (index, weight, position, lod):
+    for a in (index, weight):
         a.flags.writeable = False
     return LookupTable(
         segmentation=seg,
@@ -378,8 +374,6 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         first_level=first,
         index=index,
         weight=weight,
-        position=position,
-        lod=lod.reshape(shape),
     )
 
 

@@ -142,8 +142,8 @@ def test_cube_edge_directions_are_shared():
 @pytest.mark.parametrize("triangles", [0, 32])
 def test_faces_meet_without_seams(triangles):
     S = 64
-    table = lookup_table(W, H, BBOX, Params(triangles=triangles), "cube", S)
-    pos = table.position
+    seg = segment(W, H, BBOX, Params(triangles=triangles))
+    pos = plate_positions(texel_directions("cube", S, dtype=np.float32), seg, triangles)
     for fa, ea, fb, eb in EDGES:
         a, b = _edge(face(pos, fa, S), ea), _edge(face(pos, fb, S), eb)
         assert _matching(a, b) < 1e-6, (fa, ea, fb, eb)
