@@ -53,9 +53,11 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
     settings = scene.virtual_reflections
     report = pipeline.Report()
     image = plate.require_plate(scene)
+    pyramids = {}  # the plate's pyramids, shared by every object's map
     with report.timed("plate"):
         if pixels is None:
-            pixels, report.plate = plate.pixels(scene, image)
+            found = plate.frame(scene, image=image)
+            pixels, report.plate, pyramids = found.pixels, found.info, found.pyramids
         else:
             report.plate = (
                 f"{pixels.shape[1]}x{pixels.shape[0]} pixels given for plate '{image.name}'"
@@ -75,7 +77,9 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         # One shared, camera-aligned world map from the union of the objects' bounds.
         box = union_box(boxes.values())
         shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
-        env, _ = pipeline.build_map(pixels, box, shared, max(widths.values()), report, "World")
+        env, _ = pipeline.build_map(
+            pixels, box, shared, max(widths.values()), report, "World", pyramids
+        )
         with report.timed("image"):
             world_map = maps.store_map(maps.WORLD_MAP, env, save_dir)
         with report.timed("wiring"):
@@ -95,7 +99,7 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
             report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
             continue
         own = pipeline.map_params(view, scene, depsgraph, [obj])
-        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name)
+        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name, pyramids)
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):

@@ -206,12 +206,13 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
     return boxes, extents, problems
 
 
-def build_map(pixels, box, map_params, width, report, name=None):
+def build_map(pixels, box, map_params, width, report, name=None, pyramids=None):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
     -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
     comes from the engine's cache when the plate size, box, params and width were seen before
     (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
-    report's warnings (`fit_warnings`)."""
+    report's warnings (`fit_warnings`). ``pyramids``: the plate's pyramids (a dict kept with
+    the plate, `plate.PlateFrame.pyramids`), shared by every map of these pixels."""
     h, w = pixels.shape[:2]
     with report.timed("table"):
         misses = lookup_table.cache_info().misses
@@ -221,7 +222,7 @@ def build_map(pixels, box, map_params, width, report, name=None):
         paper = map_params.method == "paper"
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
     with report.timed("gather"):
-        env = apply_table(table, pixels)
+        env = apply_table(table, pixels, pyramids)
     return env, table
 
 

@@ -36,10 +36,13 @@ def _scratch(name: str, shape: tuple) -> np.ndarray:
     return buf[:size].reshape(shape)
 
 
-def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
+def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None) -> np.ndarray:
     """One filtered gather: (H, W, 3) float32 clean linear plate -> (h, w, 3) float32 map.
 
-    The plate must have the size the table was built for.
+    The plate must have the size the table was built for. `pyramids`: a dict the caller keeps
+    for this plate (its pixels unchanged while the dict lives): the plate's mip pyramid is
+    built once per set of levels and kept there, so several maps of one plate (several
+    objects, a regeneration) share it.
     """
     seg = table.segmentation
     if plate.shape[:2] != (seg.height, seg.width):
@@ -51,8 +54,15 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
     fill = table.fill
     extra = FILL_BINS * fill.sides if fill is not None else 0
-    source = _scratch("pyramid", (rows + extra, 3))
-    pyramid = build_pyramid(plate, table.levels, first, out=source[:rows])
+    key = (seg.height, seg.width, table.levels, first)
+    source = None if pyramids is None else pyramids.get(key)
+    if source is None:
+        if pyramids is None:
+            source = _scratch("pyramid", (rows + extra, 3))
+        else:  # with room for any table's fill rows after it
+            source = pyramids[key] = np.empty((rows + 2 * FILL_BINS, 3), np.float32)
+        build_pyramid(plate, table.levels, first, out=source[:rows])
+    pyramid = source[:rows]
     if fill is not None:
         shapes = level_shapes(seg.height, seg.width, table.levels)
         level = level_view(pyramid, shapes, fill.level, first)
