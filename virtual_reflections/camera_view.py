@@ -109,6 +109,8 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
     hi = np.arctan(cy / fy * cos_a)
     px = np.clip(cx - fx * np.tan(a), 0.0, width).astype(np.float32)
     below, above = el[:, None] < lo, el[:, None] > hi  # (n, W)
+    # The centre's projection lies in the plate (seen_footprints' test, per row and column).
+    inside = (np.cos(az) > 1e-9) & (az == a) & (np.cos(el)[:, None] > 0) & ~below & ~above
 
     def pick(f):  # f(e) for the clamped elevation, from per-row and per-column values
         return np.where(below, f(lo), np.where(above, f(hi), f(el)[:, None])).astype(np.float32)
@@ -127,7 +129,7 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
     np.sqrt(np.clip(half, 0.0, 1.0, out=half), out=half)
     angle = 2.0 * np.arcsin(half)
     angle[angle < ANGLE_EPS] = 0.0  # as clamp_to_view: round-off inside the plate's view
-    return position.reshape(-1, 2), angle.ravel()
+    return position.reshape(-1, 2), angle.ravel(), inside.ravel()
 
 
 def plate_positions(
@@ -177,10 +179,11 @@ def directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float)
     return cube_directions(face, col + dx, frow + dy, size)
 
 
-def seen_footprints(layout, size, directions, width, height, intrinsics):
+def seen_footprints(layout, size, directions, width, height, intrinsics, ids=None):
     """The texels whose centre the plate sees, and their footprints on the plate.
 
-    directions: (T, 3) texel-centre directions. Returns (ids (S,) int64 flat texel indices,
+    directions: (T, 3) texel-centre directions; or, with `ids` (the texels known to be seen,
+    flat indices), theirs only (len(ids), 3). Returns (ids (S,) int64 flat texel indices,
     rect (4, S) float64 x0, x1, y0, y1 in plate pixels: the rectangle between the projections
     of the texel's corners (each side the mean of its two corners), widened to at least one
     pixel about the centre's projection and clipped to the plate).
@@ -196,11 +199,13 @@ def seen_footprints(layout, size, directions, width, height, intrinsics):
         py = cy - fy * d[:, 1] / zs
         return px, py, ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height)
 
-    ids = np.concatenate(
-        [a + np.flatnonzero(project(directions[a:b])[2]) for a, b in _chunks(len(directions))]
-        or [np.zeros(0, np.int64)]
-    )
-    px, py, _ = project(directions[ids])
+    if ids is None:
+        ids = np.concatenate(
+            [a + np.flatnonzero(project(directions[a:b])[2]) for a, b in _chunks(len(directions))]
+            or [np.zeros(0, np.int64)]
+        )
+        directions = directions[ids]
+    px, py, _ = project(directions)
     corners = {}
     ok = np.ones(ids.size, bool)
     for dx in (-0.5, 0.5):

@@ -186,17 +186,19 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     shape = map_shape(layout, size)
     width, height = seg.width, seg.height
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
-    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
-    count = directions.shape[0]
+    latlong = layout == "latlong"  # a lat-long's texels are worked on row by row, not listed
+    directions = None if latlong else texel_directions(layout, size, dtype=np.float32)
+    count = shape[0] * shape[1]
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
+    inside = np.empty(count, bool) if latlong else None
 
     if layout == "latlong":  # row by row, the trigonometry per row and column
 
         def project(a, b):
             rows = slice(a, b)
             texels = slice(a * size, b * size)
-            position[texels], angle[texels] = camera_view.clamp_to_view_latlong(
+            position[texels], angle[texels], inside[texels] = camera_view.clamp_to_view_latlong(
                 size, width, height, intrinsics, rows
             )
 
@@ -205,7 +207,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
 
         def project(a, b):
             position[a:b], angle[a:b] = camera_view.clamp_to_view(
-                directions[a:b], width, height, intrinsics
+                directions.reshape(-1, 3)[a:b], width, height, intrinsics
             )
 
         for_blocks(project, count, max_rows=CHUNK)
@@ -218,7 +220,15 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     )
     lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
 
-    seen, rect = camera_view.seen_footprints(layout, size, directions, width, height, intrinsics)
+    if latlong:
+        seen = np.flatnonzero(inside)
+        centres = camera_view.directions_at(layout, size, seen, 0.0, 0.0)
+    else:
+        directions = directions.reshape(-1, 3)
+        seen, centres = None, directions
+    seen, rect = camera_view.seen_footprints(
+        layout, size, centres, width, height, intrinsics, ids=seen
+    )
     seen_level = camera_view.supersample_levels(rect, shapes)
     unseen = np.ones(count, bool)
     unseen[seen] = False
@@ -265,7 +275,11 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             params.sky_gain,
         )
         # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
-        toward = directions[:size] if layout == "latlong" else directions
+        toward = (
+            camera_view.directions_at(layout, size, np.arange(size), 0, 0)
+            if latlong
+            else directions
+        )
         side = camera_view.side_weight(toward, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
