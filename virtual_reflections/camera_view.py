@@ -538,13 +538,13 @@ def fill_bins_latlong(size: int, up=None, rows=None, out=None):
     """Where the fill profile is read for the texel centres of a `size`-wide lat-long, rows
     `rows` (a slice; default all), texels row by row: (n,) uint16, the elevation in bins
     above -90 degrees times FILL_STEPS (rounded: 0.008 degrees at most), the compact form of
-    `fill_taps` (whose side weight is the texel's column's). `out`: (n,) uint16 to write
-    into."""
+    `fill_taps` (whose side weight is the texel's column's). Without `up` a texel's elevation
+    is its row's: then one value per row. `out`: (n,) uint16 to write into."""
     h = size // 2
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
     if up is None:
-        elevation = np.broadcast_to(np.degrees(el)[:, None], (len(rows), size))
+        elevation = np.degrees(el)
     else:  # d . up = cos(el) (sin(az) ux + cos(az) uz) + sin(el) uy, d a unit vector
         ux, uy, uz = np.asarray(up, np.float64) / np.linalg.norm(up)
         az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
@@ -601,9 +601,21 @@ def fill_lookup(profile) -> np.ndarray:
 
 def fill_values(steps, side, lookup, out) -> None:
     """The fill at lat-long texels from the compact form: out (n, 3) float32 = `lookup`
-    (`fill_lookup`) at each texel's steps (`fill_bins_latlong`), the two sides blended by
-    `side` ((3 W,) float32: the left side's weight per column, repeated for R, G, B; n a
-    whole number of rows), or one side's (side None)."""
+    (`fill_lookup`) at each texel's steps (`fill_bins_latlong`; or one per row), the two
+    sides blended by `side` ((3 W,) float32: the left side's weight per column, repeated for
+    R, G, B; n a whole number of rows), or one side's (side None)."""
+    if steps.size < out.shape[0]:  # one step per row: each row's colours by column
+        rows = out.reshape(steps.size, -1, 3)
+        left = np.take(lookup[0], steps, axis=0)  # (rows, 3)
+        if side is None:
+            rows[:] = left[:, None]
+            return
+        right = np.take(lookup[1], steps, axis=0)
+        left -= right
+        for c in range(3):  # outer products: long inner loops
+            np.multiply.outer(left[:, c], side[c::3], out=rows[:, :, c])
+            rows[:, :, c] += right[:, c, None]
+        return
     if side is None:
         np.take(lookup[0], steps, axis=0, out=out)
         return

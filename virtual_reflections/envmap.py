@@ -85,7 +85,8 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
         def fill_rows(a, b):
             texels = slice(a * width, b * width)
-            fill_values(steps[texels], side, lookup, out[texels])
+            mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
+            fill_values(mine, side, lookup, out[texels])
 
         for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
     for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):

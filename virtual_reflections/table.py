@@ -59,8 +59,9 @@ class LookupTable:
     texels: np.ndarray | None = None
     groups: tuple = ()
     fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
-    # A lat-long's fill for every texel, before the groups (written over it): (steps (T,)
-    # uint16, side (3 W,) float32 or None), see camera_view.fill_values.
+    # A lat-long's fill for every texel, before the groups (written over it): (steps (T,) or,
+    # without a world horizon, (H,) per row, uint16; side (3 W,) float32 or None), see
+    # camera_view.fill_values.
     fill_texels: tuple | None = None
 
 
@@ -302,16 +303,23 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     fill_texels = None
     if filled:
         if layout == "latlong":  # compact: 2 bytes a texel, read per frame by fill_values
-            fill_steps = np.empty(count, np.uint16)
+            if params.up is None:  # a texel's elevation is its row's: one step per row
+                fill_steps = camera_view.fill_bins_latlong(size)
+                near_steps = fill_steps[near // size]
+            else:
+                fill_steps = np.empty(count, np.uint16)
 
-            def fill_rows(a, b):
-                texels = slice(a * size, b * size)
-                camera_view.fill_bins_latlong(size, params.up, slice(a, b), out=fill_steps[texels])
+                def fill_rows(a, b):
+                    texels = slice(a * size, b * size)
+                    camera_view.fill_bins_latlong(
+                        size, params.up, slice(a, b), out=fill_steps[texels]
+                    )
 
-            for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+                for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+                near_steps = fill_steps[near]
             fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
             near_side = None if side is None else side[near % size]
-            near_fill = camera_view.fill_bin_taps(fill_steps[near], fill.base, near_side)
+            near_fill = camera_view.fill_bin_taps(near_steps, fill.base, near_side)
         else:  # the fill's taps for every texel, in order, the first group
             all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
             near_fill = all_index[near], all_weight[near]
