@@ -11,8 +11,9 @@ Cold tables (new bounds or camera): building the table from a 3840x2160 plate fo
 4096 wide lat-longs, its time, its bytes per texel and the peak memory while building
 (tracemalloc, which NumPy reports to; measured in a separate run from the time).
 
-`run_sweep` charts time and memory against map width (256 .. 4096) and plate size (1080p, 4K,
-8K), ours against the peer.
+`run_sweep` charts time and memory (the cached table's bytes and the plate's mip pyramid,
+kept with the plate) against map width (256 .. 4096) and plate size (1080p, 4K, 8K), ours
+against the peer.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 
 from virtual_reflections.cache import nbytes
 from virtual_reflections.envmap import apply_table
+from virtual_reflections.mipmap import pyramid_size
 from virtual_reflections.params import Params
 from virtual_reflections.segmentation import segment
 from virtual_reflections.table import build_table
@@ -188,6 +190,8 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
                 table = _table(m, width, height, size)
                 row[f"cold {m}"] = 1000.0 * (time.perf_counter() - t)
                 row[f"mb {m}"] = nbytes(table) / 2**20
+                pyramid = pyramid_size(height, width, table.levels, table.first_level) * 12
+                row["pyramid mb"] = max(row.get("pyramid mb", 0.0), pyramid / 2**20)
                 row[f"apply {m}"] = median_ms(lambda t=table, p=plate: apply_table(t, p), repeat)
                 del table
             rows.append(row)
@@ -224,6 +228,14 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
                 marker=styles[name],
                 label=f"ours {m}, {name} plate",
             )
+        axes[2].plot(
+            x,
+            [r["pyramid mb"] for r in mine],
+            ":",
+            marker=styles[name],
+            color="grey",
+            label=f"the plate's pyramid, {name} plate",
+        )
         if "peer" in mine[0]:
             axes[0].plot(
                 x,
@@ -233,7 +245,7 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
                 lw=2,
                 label="peer: py360convert c2e (cube faces)",
             )
-    titles = ("per frame (table cached)", "cold table (new bounds or camera)", "table memory")
+    titles = ("per frame (table cached)", "cold table (new bounds or camera)", "memory")
     for ax, title, unit in zip(axes, titles, ("ms", "ms", "MB")):
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
@@ -243,6 +255,7 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
         ax.set_title(title)
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)
+    axes[2].legend(fontsize=7)
     fig.suptitle(f"{os.cpu_count()} cores, NumPy {np.__version__}; peer: {peer_name}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
