@@ -13,10 +13,16 @@ face's centre in the continuous limit) each texel averages the area it covers.
 The camera-view method (camera_view.py) has three groups of texels, each with its own
 number of taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps),
 those near the plate's view (8 trilinear taps of the blurred edge extension, faded into the
-fill's taps) and the rest (the fill's taps only: 2, interpolating the profile by elevation, or
-4 with `fill_sides`, the left and the right profile weighted by `camera_view.side_weight`).
-The fill profiles are computed per frame and stored after the pyramid, so they are one more
-block of rows the same gathers read.
+fill's taps) and the rest (the fill only: the profile interpolated by elevation, and with
+`fill_sides` the left and the right profile weighted by `camera_view.side_weight`). The fill
+profiles are computed per frame and stored after the pyramid, so they are one more block of
+rows the same gathers read. On a lat-long the fill is not stored as taps: every texel keeps
+its elevation as one uint16 step (one per row without a world horizon) and the fill is
+written everywhere first (`camera_view.fill_values`), the other groups over it.
+
+Building works in blocks of texels (or rows) over the cores, so its temporaries stay small
+whatever the map's size; on a lat-long the camera-view geometry is taken per row and per
+column (a texel's azimuth is its column's, its elevation its row's).
 """
 
 from __future__ import annotations
