@@ -4,9 +4,10 @@ they are composited into (Ropinski, Wachenfeld & Hinrichs 2004).
 Only wiring lives here: submodules register in order and unregister in reverse.
 """
 
-from . import operators, preferences, ui
+from . import operators, preferences, render_shot, ui
 
-_modules = (operators, ui, preferences)
+# render_shot registers the command line `blender -c virtual_reflections ...`
+_modules = (operators, ui, preferences, render_shot)
 
 
 def register():

@@ -1,17 +1,26 @@
 """Headless batch entry: render a shot with virtual reflections and composite it over the plate.
 
+    blender -c virtual_reflections shot.blend --plate PLATE --out DIR   (Blender 4.2+, enabled)
     blender -b shot.blend --python <extension>/render_shot.py -- --plate PLATE --out DIR
     python -m render_shot shot.blend --plate PLATE --out DIR        (bpy module, repo root)
+
+The first form is the extension's command (`register`, bpy.utils.register_cli_command): no
+need to know where the extension is installed; Blender exits with the run's exit code.
 
 One frame (a still plate, no --frames): writes DIR/<shot>_render.exr (RGBA, linear),
 DIR/<shot>_composite.png (sRGB) and .exr (linear), one line per stage with its time.
 
-A frame range (--frames 1-240, 1-10x2, 5, 1,3,7-9; or a plate that is a sequence
-plate.####.exr / plate.%04d.jpg or a movie, then the scene's range by default): per frame the
-maps from that frame's plate, DIR/<shot>.<frame:04d>.exr|png (--format), a progress line,
-and the report DIR/<shot>.report.json (--report PATH) rewritten after each frame. Frames
-already complete are skipped unless --overwrite; every file is written under a temporary
-name and renamed, so a killed run leaves no half-written frame and resumes where it stopped.
+A frame range (--frames 1-240, 1..240 as Blender's -f, 1-10x2, 5, 1,3,7-9; or a plate that is
+a sequence plate.####.exr / plate.%04d.jpg or a movie, then the scene's range by default): per
+frame the maps from that frame's plate, the composite DIR/<shot>.<frame:04d>.exr|png
+(--format; PNG through the scene's view transform, named in the report), the CG element
+DIR/<shot>_render.<frame:04d>.exr (the render alone, RGBA scene-linear), a progress line, and
+the report DIR/<shot>.report.json (--report PATH) rewritten after each frame. Frames already
+complete, and made by the same inputs (a record per frame: the plate file, the settings, the
+extension's version; operators/batch_record.py), are skipped unless --overwrite; a complete
+frame made by other inputs is rendered again and the report says why. Every file is written
+under a temporary name and renamed, so a killed run leaves no half-written frame and resumes
+where it stopped.
 
 Options: --objects NAME [NAME ...] (default: marked objects, else every visible mesh-like
 object), --combine REPLACE|MODULATE|MIX|WORLD, --resolution W, --triangles N, --frame F,
@@ -150,7 +159,7 @@ def parse(argv):
     p.add_argument("--max-passes", type=int, default=None, help="--passes auto: at most")
     p.add_argument("--no-reflections", action="store_true")
     p.add_argument("--name", default=None, help="output file stem (default: the .blend's name)")
-    p.add_argument("--frames", default=None, help="1-240, 1-10x2, 5 or 1,3,7-9")
+    p.add_argument("--frames", default=None, help="1-240, 1..240, 1-10x2, 5 or 1,3,7-9")
     p.add_argument("--format", choices=("exr", "png"), default="exr", help="frame range output")
     p.add_argument("--overwrite", action="store_true", help="render complete frames again")
     p.add_argument("--report", default=None, help="report path (default DIR/<name>.report.json)")
@@ -227,6 +236,37 @@ def run(bpy, addon, own, options):
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()
+
+
+# --- `blender -c virtual_reflections ...` (Blender 4.2+) -----------------------------------------
+
+CLI_COMMAND = "virtual_reflections"
+_cli = []  # the handle of the registered command
+
+
+def command(argv):
+    """The extension's command line: ``blender -c virtual_reflections [shot.blend] --plate ...``
+    (every option of this script); returns the exit code Blender leaves with."""
+    code = main(list(argv))
+    sys.stdout.flush()
+    sys.stderr.flush()
+    return code
+
+
+def register():
+    """Register `command` with Blender (4.2+; older Blenders have no command lines to add)."""
+    import bpy
+
+    add = getattr(bpy.utils, "register_cli_command", None)
+    if add is not None and not _cli:
+        _cli.append(add(CLI_COMMAND, command))
+
+
+def unregister():
+    import bpy
+
+    while _cli:
+        bpy.utils.unregister_cli_command(_cli.pop())
 
 
 def _exit(code):

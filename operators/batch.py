@@ -29,6 +29,7 @@ import signal
 import sys
 import tempfile
 import time
+import tomllib
 from dataclasses import dataclass
 
 import bpy
@@ -42,6 +43,7 @@ from ..virtual_reflections.imagefiles import (
     check_complete,
     commit,
     held_stderr,
+    read_channels,
     read_header,
     read_rgba,
     remove_stale_temps,
@@ -50,7 +52,7 @@ from ..virtual_reflections.imagefiles import (
     write_rgba,
 )
 from ..virtual_reflections.memory import check_fits, plate_job_bytes
-from . import compositor, generate, interreflect, plate, sequence, shading
+from . import batch_record, compositor, generate, interreflect, plate, sequence, shading
 from .batch_lock import OutputLock
 from .batch_options import BatchOptions
 
@@ -194,14 +196,19 @@ def _save_image(scene, pixels_rgb, path, fmt):
             np.clip(rgba, -HALF_MAX, HALF_MAX, out=rgba)  # a sun stays finite in half floats
         image.pixels.foreach_set(rgba.ravel())
         settings = scene.render.image_settings
-        previous = (settings.file_format, settings.color_mode, settings.color_depth)
+        keys = ("media_type",) if hasattr(settings, "media_type") else ()  # 5.x: first
+        keys += ("file_format", "color_mode", "color_depth")
+        previous = {key: getattr(settings, key) for key in keys}
+        if keys[0] == "media_type":
+            settings.media_type = "IMAGE"
         settings.file_format = fmt
         settings.color_mode = "RGB"
         settings.color_depth = "16" if fmt == "OPEN_EXR" else "8"
         try:
             image.save_render(path, scene=scene)
         finally:
-            settings.file_format, settings.color_mode, settings.color_depth = previous
+            for key in keys:
+                setattr(settings, key, previous[key])
     finally:
         bpy.data.images.remove(image)
 
@@ -270,32 +277,66 @@ def _not_a_plate(outputs, plates):
                 )
 
 
-def _render_rgba(scene, temp):
-    """Render the scene into the EXR ``temp`` and read it back: ((h, w, 4) float32 RGBA,
-    seconds of the render call). Blender's own error lines are held back (the tool says it);
-    a signal received during the render is raised once it returns."""
+def _render_rgba(scene, temp, use_compositor=False):
+    """Render the scene into the EXR ``temp`` and read it back: ((h, w, 4) float32 RGBA of the
+    render, (h, w, 3) float32 result of the shot's own compositor or None, seconds of the
+    render call). Blender's own error lines are held back (the tool says it); a signal
+    received during the render is raised once it returns."""
     scene.render.filepath = temp
     with held_stderr():
         started = time.perf_counter()
         bpy.ops.render.render(write_still=True, scene=scene.name)
         seconds = time.perf_counter() - started
         _raise_if_signalled()
-        return read_rgba(temp), seconds
+        if not use_compositor:
+            return read_rgba(temp), None, seconds
+        channels = read_channels(temp)
+    layer = next((v.name for v in scene.view_layers if v.use), scene.view_layers[0].name)
+    try:
+        rgba = np.stack([channels[f"{layer}.Combined.{c}"] for c in "RGBA"], axis=-1)
+        comp = np.stack([channels[f"Composite.Combined.{c}"] for c in "RGB"], axis=-1)
+    except KeyError as exc:
+        raise ImageError(f"the render has no {exc.args[0]} channel") from exc
+    return rgba.astype(np.float32), comp.astype(np.float32), seconds
 
 
-def _render_to(scene, path):
-    """Render the scene into ``path`` (an RGBA float EXR) through a temporary file, read back
-    and renamed; Blender's own error lines are dropped when it fails (the tool says it)."""
+def artist_compositor(scene):
+    """What the shot's own compositor is, in a few words, when it has one beyond the plate
+    set-up (`compositor.setup_from_plate` keeps it under the plate: 4.5 in the scene's tree,
+    5.x nested in the "VR Composite" group); None when it has none or had compositing off."""
+    plain = {"R_LAYERS", "COMPOSITE", "VIEWER", "GROUP_OUTPUT", "GROUP_INPUT", "FRAME", "REROUTE"}
+    try:
+        record = json.loads(scene.get(compositor.RECORD, "{}"))
+    except ValueError:
+        record = {}
+    setup = record.get("compositor") or {}
+    if record.get("use_compositing") is False or setup.get("use_nodes") is False:
+        return None  # the artist had compositing off: theirs is not the shot's look
+    if setup.get("previous_group"):
+        tree = bpy.data.node_groups.get(setup["previous_group"])
+    elif not setup.get("group"):
+        tree = getattr(scene, "node_tree", None)  # 4.5: the scene's own tree
+    else:
+        tree = None
+    if tree is None:
+        return None
+    own = sorted(n.name for n in tree.nodes if n.type not in plain and not n.name.startswith("VR "))
+    return f"{tree.name}: {', '.join(own)}" if own else None
+
+
+def _render_to(scene, path, use_compositor=False):
+    """Render the scene; its RGBA (scene-linear) goes to ``path`` (an RGBA float EXR, written
+    atomically). Returns (rgba, the compositor's result or None)."""
     temp = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
     try:
-        rgba, _ = _render_rgba(scene, temp)
-        commit(temp, path, rgba.shape[1], rgba.shape[0])
+        rgba, comp, _ = _render_rgba(scene, temp, use_compositor)
+        write_rgba(path, rgba)
     except ImageError as exc:
         raise BatchError(str(exc).replace(temp, path)) from exc
     finally:
         if os.path.exists(temp):
             os.remove(temp)
-    return rgba
+    return rgba, comp
 
 
 def render_shot(options: BatchOptions, started):
@@ -373,24 +414,38 @@ def _one_frame(scene, options, image, name, started):
 
     t = time.perf_counter()
     render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
-    _render_settings(scene)
-    rgba = _render_to(scene, render_path)
+    own = artist_compositor(scene)
+    _render_settings(scene, own is not None)
+    rgba, comp = _render_to(scene, render_path, own is not None)
     print(f"[{stamp()}] rendered {render_path} in {time.perf_counter() - t:.2f} s")
 
     t = time.perf_counter()
-    pixels, _ = plate.pixels(scene, image)
-    comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
+    if own is not None:
+        print(f"[{stamp()}] composite: the shot's own compositor ({own}) over the plate")
+    else:
+        pixels, _ = plate.pixels(scene, image)
+        comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
     _save_composite(scene, comp, options.out, name, stamp, t)
     return 0
 
 
-def _render_settings(scene):
+def _render_settings(scene, use_compositor=False):
     """A transparent RGBA float EXR of the render; the composite is made in NumPy, the same
-    in 4.5 and 5.x."""
-    scene.render.use_compositing = False
+    in 4.5 and 5.x, unless the shot has its own compositor (``use_compositor``): then it
+    runs (over the plate, as compositor.setup_from_plate set it up) and the render is a
+    multilayer EXR holding both the view layer and the compositor's result."""
+    scene.render.use_compositing = use_compositor
     scene.render.film_transparent = True
     settings_img = scene.render.image_settings
-    settings_img.file_format, settings_img.color_mode = "OPEN_EXR", "RGBA"
+    if use_compositor:
+        if hasattr(settings_img, "media_type"):  # 5.x: multilayer is a media type
+            settings_img.media_type = "MULTI_LAYER_IMAGE"
+        settings_img.file_format = "OPEN_EXR_MULTILAYER"
+    else:
+        if hasattr(settings_img, "media_type"):
+            settings_img.media_type = "IMAGE"
+        settings_img.file_format = "OPEN_EXR"
+    settings_img.color_mode = "RGBA"
     settings_img.color_depth = "32"
 
 
@@ -607,13 +662,105 @@ def render_frames(options: BatchOptions, started, source):
         raise ValueError(f"--report is a folder, not a file: {report_path}")
     source.check(frames)
     outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
+    elements = {f: element_path(out, name, f) for f in frames}
     plates = {source.file(f) for f in frames} if source.kind == "sequence" else {source.file(0)}
-    _not_a_plate([*outputs.values(), report_path], plates)
+    _not_a_plate([*outputs.values(), *elements.values(), report_path], plates)
     _check_folder(out)
     if os.path.dirname(report_path) != out:
         _check_folder(os.path.dirname(report_path))
     with OutputLock(out, name, frames):
         return _render_frames(options, started, source, frames, outputs, report_path)
+
+
+def element_path(out, name, frame):
+    """The CG element of ``frame``, kept beside its composite: the render alone, RGBA
+    scene-linear float EXR, ``<name>_render.<frame:04d>.exr`` (a sequence of its own)."""
+    return os.path.join(out, f"{name}_render.{frame:04d}.exr")
+
+
+def _extension_version():
+    """The extension's version, from its blender_manifest.toml ("unknown" without one)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        with open(os.path.join(root, "blender_manifest.toml"), "rb") as f:
+            return str(tomllib.load(f).get("version", "unknown"))
+    except (OSError, ValueError):
+        return "unknown"
+
+
+def _view(scene):
+    """The colour management a PNG is written through (the scene's view transform)."""
+    view = scene.view_settings
+    return {
+        "display": scene.display_settings.display_device,
+        "view_transform": view.view_transform,
+        "look": view.look,
+        "exposure": round(view.exposure, 6),
+        "gamma": round(view.gamma, 6),
+    }
+
+
+def _run_inputs(scene, options, objects, size, use_passes):
+    """What makes every frame of this run, besides its plate (batch_record): the shot, the
+    effective settings (after the command line's), passes, render and output."""
+    settings = scene.virtual_reflections
+    ground = getattr(settings, "ground_object", None)
+    reflections = {
+        key: getattr(settings, key)
+        for key in (
+            "method",
+            "combine",
+            "resolution",
+            "front",
+            "triangles",
+            "enlarge",
+            "border",
+            "strength",
+            "ior",
+            "smoothing",
+        )
+        if hasattr(settings, key)
+    }
+    reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
+    reflections["ground_object"] = ground.name if ground is not None else None
+    reflections["objects"] = sorted(o.name for o in objects)
+    if scene.render.engine == "CYCLES":
+        samples = scene.cycles.samples
+    else:
+        samples = getattr(scene.eevee, "taa_render_samples", None)
+    return {
+        "extension_version": _extension_version(),
+        "shot": batch_record.file_identity(bpy.data.filepath) if bpy.data.filepath else None,
+        "scene": scene.name,
+        "reflections": reflections if not options.no_reflections else None,
+        "passes": {
+            "passes": options.passes if use_passes else 1,
+            "tolerance": options.tolerance or interreflect.TOLERANCE,
+            "max_passes": options.max_passes or interreflect.R_MAX,
+        }
+        if use_passes
+        else 1,
+        "render": {"engine": scene.render.engine, "size": list(size), "samples": samples},
+        "format": options.format,
+        "view": _view(scene) if options.format == "png" else "scene-linear",
+    }
+
+
+def _frame_inputs(run_inputs, source, frame):
+    """``run_inputs`` and the plate of ``frame`` (its file's size and time; a movie's frame)."""
+    plate_file = batch_record.file_identity(source.file(frame))
+    if source.kind == "movie":
+        plate_file["frame"] = frame
+    return {**run_inputs, "plate": plate_file}
+
+
+def _resume(paths, size, inputs, overwrite):
+    """(skip, why): skip a frame only when its outputs ``paths`` are complete and their record
+    says ``inputs`` made them; ``why`` says why a complete frame is rendered again."""
+    if overwrite or not all(_complete(p, size) for p in paths):
+        return False, None
+    why = batch_record.stale(paths[0], inputs)
+    return why is None, why
 
 
 def _render_frames(options, started, source, frames, outputs, report_path):
@@ -631,13 +778,16 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     settings.plate_image = image
     compositor.setup_from_plate(scene, image)
     _configure(scene, options)
-    _render_settings(scene)
+    use_passes = not options.no_reflections and options.passes != 1
+    own = None if use_passes else artist_compositor(scene)  # passes composite in NumPy
+    _render_settings(scene, own is not None)
     size = _render_size(scene)
     # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
     # run's. The report may be shared with a live run on other frames: only dead runs' go.
-    remove_stale_temps(out, _stems(outputs.values()), live_ok=True)
+    owned = [*outputs.values(), *(element_path(out, name, f) for f in outputs)]
+    records = [os.path.basename(batch_record.record_path(p))[1:] for p in outputs.values()]
+    remove_stale_temps(out, _stems(owned) + records, live_ok=True)
     remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
-    use_passes = not options.no_reflections and passes != 1
     header = {
         "version": 1,
         "shot": bpy.data.filepath,
@@ -647,6 +797,16 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         "plate_kind": source.kind,
         "out": out,
         "format": fmt,
+        "colour": {
+            "element": "scene-linear Rec.709, float RGBA EXR (premultiplied)",
+            "composite": "scene-linear Rec.709, half-float EXR"
+            if fmt == "exr"
+            else "the scene's view transform: {view_transform}, look {look}, exposure "
+            "{exposure}, gamma {gamma}, display {display}".format(**_view(scene)),
+            "over": f"the shot's own compositor ({own}), over the plate"
+            if own
+            else "the render over the plate (premultiplied alpha over, in NumPy)",
+        },
         "requested": options.frames,
         "blender": bpy.app.version_string,
         "render": {
@@ -667,6 +827,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         f"frames {len(frames)} ({frames[0]}-{frames[-1]}), plate {source.kind} {source.text}, "
         f"render {size[0]}x{size[1]} with {scene.render.engine}, out {out}"
     )
+    print(f"composites: {header['colour']['over']}; {header['colour']['composite']}")
     previous = _read_report(report_path)
     objects = []
     warnings = []
@@ -677,10 +838,11 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         if use_passes:
             warnings.append("--passes: pass 1 is Generate, so bounds are not smoothed over frames")
 
+    run_inputs = {**_run_inputs(scene, options, objects, size, use_passes), "compositor": own}
     entries = {}
     filters = {}
     step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
-    job = FrameJob(scene, source, fmt, objects, filters, step, use_passes, options)
+    job = FrameJob(scene, source, fmt, objects, filters, step, use_passes, options, own)
     with sequence.suspended():
         if objects and not use_passes:
             # Attach first (at the first frame), so skipped and pre-rolled frames can step the
@@ -701,9 +863,14 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         for i, frame in enumerate(frames, 1):
             t0 = time.perf_counter()
             path = outputs[frame]
-            if not options.overwrite and _complete(path, size):
-                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path]}))
+            element = element_path(out, name, frame)
+            inputs = _frame_inputs(run_inputs, source, frame)
+            skip, why = _resume([path, element], size, inputs, options.overwrite)
+            if skip:
+                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path, element]}))
                 entry["status"] = "skipped"
+                entry.pop("rendered_again", None)
+                entry["fingerprint"] = batch_record.digest(inputs)
                 if objects and not use_passes:
                     scene.frame_set(frame)
                     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -713,8 +880,14 @@ def _render_frames(options, started, source, frames, outputs, report_path):
                 print(f"frame {i}/{len(frames)} [{frame}] skipped: {done} is complete")
                 _write_json(report_path, _report(header, entries, frames, warnings, started))
                 continue
+            if why:
+                print(f"frame {i}/{len(frames)} [{frame}] rendered again: {why}", flush=True)
             try:
-                entry = job.render(frame, path)
+                batch_record.forget(path)  # the old record must not vouch for new files
+                entry = job.render(frame, path, element)
+                entry["fingerprint"] = batch_record.write(path, inputs)
+                if why:
+                    entry["rendered_again"] = why
             except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
                 error = f"frame {frame}: {_one_line(exc)}"
                 entries[frame] = {"frame": frame, "status": "failed", "error": error}
@@ -765,10 +938,11 @@ class FrameJob:
     step: int
     use_passes: bool
     options: BatchOptions
+    compositor: str | None = None  # the shot's own compositor (artist_compositor), if any
 
-    def render(self, frame, path):
-        """One frame: plate, maps, render, composite written atomically; returns its report
-        entry."""
+    def render(self, frame, path, element):
+        """One frame: plate, maps, render (kept as the CG element ``element``), composite
+        written atomically; returns its report entry."""
         scene, source, objects, options = self.scene, self.source, self.objects, self.options
         times = {}
         warnings = []
@@ -803,6 +977,7 @@ class FrameJob:
                 )
                 _raise_if_signalled()
             timed("passes", t)
+            write_rgba(element, rgba)
             pass_reports = [_pass_report(r) for r in reports]
             for r in reports:
                 warnings += list(r.warnings)
@@ -836,15 +1011,18 @@ class FrameJob:
             t = time.perf_counter()
             render_path = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
             try:
-                rgba, seconds = _render_rgba(scene, render_path)
+                own = self.compositor is not None
+                rgba, comp, seconds = _render_rgba(scene, render_path, own)
                 times["render"] = round(seconds, 4)
                 t = time.perf_counter()
+                write_rgba(element, rgba)
             except ImageError as exc:  # Blender could not write it whole (a full disk)
                 raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
             finally:
                 if os.path.exists(render_path):
                     os.remove(render_path)
-            comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
+            if comp is None:
+                comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
             timed("composite", t)
         t = time.perf_counter()
         _save(scene, comp, path, FORMATS[self.format])  # atomic and verified
@@ -852,7 +1030,7 @@ class FrameJob:
         times["total"] = round(sum(v for k, v in times.items()), 4)
         entry.update(
             {
-                "outputs": [path],
+                "outputs": [path, element],
                 "times": times,
                 "passes": len(pass_reports) or 1,
                 "pass_reports": pass_reports,

@@ -63,7 +63,7 @@ class BatchOptions:
     max_passes: int | None = None  # passes "auto": at most (None or 0: interreflect's)
     no_reflections: bool = False  # the plain render, for comparisons
     name: str | None = None  # output file stem; None: the .blend's name
-    frames: str | None = None  # a range: 1-240, 1-10x2, 5 or 1,3,7-9
+    frames: str | None = None  # a range: 1-240, 1..240, 1-10x2, 5 or 1,3,7-9
     format: str = "exr"  # a frame range's output: exr or png
     overwrite: bool = False  # render frames that are already complete again
     report: str | None = None  # report path; None: OUT/<name>.report.json

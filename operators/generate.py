@@ -78,7 +78,7 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
         box = union_box(boxes.values())
         shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
         env, _ = pipeline.build_map(
-            pixels, box, shared, max(widths.values()), report, "World", pyramids
+            pixels, box, shared, max(widths.values()), report, "World", pyramids=pyramids
         )
         with report.timed("image"):
             world_map = maps.store_map(maps.WORLD_MAP, env, save_dir)
@@ -99,12 +99,18 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
             report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
             continue
         own = pipeline.map_params(view, scene, depsgraph, [obj])
-        env, _ = pipeline.build_map(pixels, box, own, widths[obj], report, obj.name, pyramids)
+        rough = pipeline.map_roughness(scene, [obj])
+        env, _ = pipeline.build_map(
+            pixels, box, own, widths[obj], report, obj.name, rough, pyramids=pyramids
+        )
         with report.timed("image"):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):
+            ground = pipeline.ground_lookup(view, scene, depsgraph, [obj], image)
             try:
-                shading.attach(obj, image_map, settings.combine, settings.strength, settings.ior)
+                shading.attach(
+                    obj, image_map, settings.combine, settings.strength, settings.ior, ground
+                )
             except ValueError as exc:  # raised before anything changed (e.g. linked materials)
                 report.warnings.append(str(exc))
                 if not shading.is_attached(obj):

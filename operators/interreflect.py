@@ -18,6 +18,9 @@ r = 2 the objects in each other, r = 3 those reflections again, and so on. Here,
   maps change, and a map is seen only on its object. (What the objects' new maps would change
   elsewhere -- their mirror images in other glossy virtual objects, the glow of a Replace-mode
   emission on the ground -- stays as the first pass rendered it.)
+- In pass k > 1 the other reflective objects are also placed in each map where they stand
+  (`_place_neighbours`): a map built from the composite alone puts a neighbour where the camera
+  saw it, near the view direction for the camera-view methods.
 - Later passes build each map with Generate itself, given the masked composite as the plate
   (``generate.generate(..., pixels=...)``): the same bounds, map size and settings as pass 1, so
   the engine's cached lookup table is found again, the map image is updated in place
@@ -51,7 +54,8 @@ import numpy as np
 
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
 from ..virtual_reflections.imagefiles import read_channels
-from . import generate
+from ..virtual_reflections.layouts import latlong_directions
+from . import bounds, generate, images, maps, shading
 from .plate import NO_PLATE, scene_plate
 
 R_MAX = 8  # the most passes "auto" renders unless told otherwise
@@ -104,6 +108,7 @@ def render_passes(
     progress=None,
     *,
     self_mask=True,
+    neighbours=True,
 ):
     """Render ``objects`` with r-level inter-reflections; returns ``(composite, rgba, reports)``.
 
@@ -115,7 +120,9 @@ def render_passes(
     composite: (h, w, 3) float32, the last render over the plate; rgba: (h, w, 4) float32
     premultiplied, the last render (later passes pasted into the first); reports: one
     `PassReport` per pass. ``self_mask=False`` follows Listing 1 literally: objects see their
-    own previous image too. Raises ValueError (one line) when nothing can be rendered.
+    own previous image too. ``neighbours=False`` leaves each map as Generate builds it from
+    the composite (`_place_neighbours`). Raises ValueError (one line) when nothing can be
+    rendered.
     """
     settings = scene.virtual_reflections
     limit = _pass_limit(passes, r_max)
@@ -150,6 +157,8 @@ def render_passes(
             plate_small = resize_nearest(plate, h, w)
             composite = over(rgba, plate_small)
             own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
+            # ... and shrunk, for reading a neighbour: its edge pixels are mixed with the plate
+            core = {obj: ~_grow(index != i, MASK_GROW) for obj, i in ids.items()}
             coverage = np.logical_or.reduce(list(own.values()))
             reports.append(
                 PassReport(
@@ -190,6 +199,9 @@ def render_passes(
                     kept = inside[mine]
                     inside[mine] = plate_inside[mine]
                     generate.generate(scene, depsgraph, [obj], pixels=source)
+                    if neighbours:
+                        others = {o: core[o] for o in done if o is not obj}
+                        _place_neighbours(scene, depsgraph, obj, others, source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started
                 new, _, render_seconds = _render(scene, layer, path)
@@ -233,6 +245,92 @@ def _pass_limit(passes, r_max):
     if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
         raise ValueError(f"passes must be a whole number >= 1 or 'auto', not {passes!r}")
     return passes
+
+
+# --- the neighbours in each map ------------------------------------------------------------------
+
+
+def _place_neighbours(scene, depsgraph, obj, others, source):
+    """Paste the other reflective objects into ``obj``'s map where they stand around it.
+
+    A map built from the composite puts a neighbour where the camera saw it: Camera View (and
+    Camera View + Ground's map) near the view direction, which a mirror shows only at its rim;
+    in the 3D study the passes left the objects' pixels unchanged. Here each direction d of the
+    map is followed from the point of ``obj``'s bounding sphere that reflects d toward the
+    camera (a near neighbour fills more of a mirror's side than it does seen from the centre)
+    and tested against the other objects (each an ellipsoid filling its own bounding box);
+    where it meets one and the camera sees the meeting point on that object (its index mask),
+    the map takes the composite's pixel there (nearest).
+
+    others: {object: (h, w) bool mask at the render's size}. source: (H, W, 3) float32, the
+    composite at the plate's size. The map is stored again in place (`maps.store_map`).
+    Directions: the map's lat-long texels in the camera frame (docs/conventions.md), turned to
+    the world by the camera's rotation.
+    """
+    image = shading.map_of(obj)
+    camera = scene.camera.evaluated_get(depsgraph) if scene.camera else None
+    if image is None or camera is None or not others:
+        return
+    projection = bounds.camera_projection(scene, camera)
+    found = projection.intrinsics(*projection.plate_scale(source.shape))
+    if found is None:  # orthographic: no single centre of projection to place them from
+        return
+    fx, fy, cx, cy = found
+    env = images.read_pixels(image)[..., :3].copy()
+    h, w = env.shape[:2]
+    if w != 2 * h:  # not a lat-long map
+        return
+    lo, hi = bounds.world_box(obj, depsgraph)
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / (2 * np.sqrt(3))
+    to_camera = projection.world_to_camera
+    frame = latlong_directions(np.arange(w)[None, :] + 0.5, np.arange(h)[:, None] + 0.5, w)
+    # camera frame -> Blender camera-local (x, y, z) = (-x, y, -z) -> world (rotation^T)
+    world = (frame * (-1.0, 1.0, -1.0)) @ to_camera[:3, :3]
+    eye = -to_camera[:3, :3].T @ to_camera[:3, 3]  # the camera's position
+    back = (eye - centre) / max(float(np.linalg.norm(eye - centre)), 1e-9)
+    normal = world + back  # the normal that reflects the view ray into d
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-9)
+    starts = centre + radius * normal  # (h, w, 3)
+    nearest = np.full((h, w), np.inf)
+    which = np.full((h, w), -1)
+    masks = list(others.values())
+    for k, other in enumerate(others):
+        evaluated = other.evaluated_get(depsgraph)
+        box = np.array(evaluated.bound_box, dtype=np.float64)
+        middle, half = (
+            (box.min(0) + box.max(0)) / 2,
+            np.maximum((box.max(0) - box.min(0)) / 2, 1e-6),
+        )
+        inverse = np.linalg.inv(np.array(evaluated.matrix_world, dtype=np.float64))
+        origin = (starts @ inverse[:3, :3].T + inverse[:3, 3] - middle) / half
+        step = (world @ inverse[:3, :3].T) / half
+        c = np.einsum("ijk,ijk->ij", origin, origin) - 1.0
+        a = np.einsum("ijk,ijk->ij", step, step)
+        b = 2.0 * np.einsum("ijk,ijk->ij", step, origin)
+        disc = b * b - 4.0 * a * c
+        t = (-b - np.sqrt(np.maximum(disc, 0.0))) / (2.0 * a)
+        # c <= 0: the start inside the other's ellipsoid (overlapping boxes): not placed
+        hit = (c > 0.0) & (disc >= 0.0) & (t > 0.0) & (t < nearest)
+        nearest[hit], which[hit] = t[hit], k
+    rows, cols = np.nonzero(which >= 0)
+    if not len(rows):
+        return
+    points = starts[rows, cols] + nearest[rows, cols, None] * world[rows, cols]
+    local = points @ to_camera[:3, :3].T + to_camera[:3, 3]
+    depth = -local[:, 2]
+    H, W = source.shape[:2]
+    front = depth > 1e-6
+    px = np.where(front, cx + fx * local[:, 0] / np.where(front, depth, 1.0), -1.0)
+    py = np.where(front, cy - fy * local[:, 1] / np.where(front, depth, 1.0), -1.0)
+    inside = front & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    mh, mw = masks[0].shape
+    X, Y = np.clip(px, 0, W - 1).astype(int), np.clip(py, 0, H - 1).astype(int)
+    seen = np.zeros(len(rows), bool)
+    for k, mask in enumerate(masks):
+        mine = inside & (which[rows, cols] == k)
+        seen[mine] = mask[Y[mine] * mh // H, X[mine] * mw // W]
+    env[rows[seen], cols[seen]] = source[Y[seen], X[seen]]
+    maps.store_map(image.name, env, maps.save_folder(scene.virtual_reflections))
 
 
 # --- the render and its files -------------------------------------------------------------------

@@ -259,7 +259,8 @@ def _rebuild(scene, depsgraph, names, full, report):
                 shaped = replace(shaped, intrinsics=tuple(v / 2**level for v in shaped.intrinsics))
         world = shading.mode_of(objs[0]) == "WORLD"
         name = ("World" if world else objs[0].name) if full else None
-        env, _ = pipeline.build_map(source, box, shaped, width, report, name)
+        rough = pipeline.map_roughness(scene, objs) if full else 0.0  # sharp while moving
+        env, _ = pipeline.build_map(source, box, shaped, width, report, name, rough)
         with report.timed("image"):
             for obj, b in boxes.items():
                 obj.virtual_reflections.bounds = b  # the panel's segmentation preview follows

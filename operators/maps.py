@@ -6,14 +6,22 @@ docs/conventions.md). Every map carries ``images.CREATED = "map"``. Where a map'
 kept is the scene's ``map_storage``: packed into the .blend when it is saved (`pack_pending`;
 packing encodes an EXR, so it happens once per save, not once per regeneration), or saved as
 EXR files into `maps_folder`.
+
+Both are the engine's EXR (`imagefiles.write_map`), not Blender's image save: scene-linear
+half floats, ZIP-compressed, Rec.709 chromaticities, tagged scene-linear, with the standard
+``envmap = LATLONG`` attribute, so a saved or unpacked map is a pipeline file as it is.
+(Blender's ``Image.save`` writes a generated float image uncompressed, in float32, and 5.x
+tags it with the display's space.) The image then reads its pixels from that file.
 """
 
 import hashlib
 import os
+import tempfile
 
 import bpy
 import numpy as np
 
+from ..virtual_reflections.imagefiles import ImageError, write_map
 from . import images
 from .choices import addon_preferences
 
@@ -81,7 +89,8 @@ def save_folder(settings):
 def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str = KIND):
     """Write an (H, W, 3) float32 map into the image ``name`` (made if missing, updated in
     place) and keep it: saved as EXR into ``save_dir`` when given, else packed into the .blend
-    at its next save. Returns the image. ValueError when an image of that name is not ours."""
+    at its next save. Returns the image. ValueError when an image of that name is not ours;
+    imagefiles.ImageError (a ValueError) when the file cannot be written."""
     h, w = env.shape[:2]
     image = images.own_image(name, w, h, kind)
     image.use_fake_user = True  # kept with the .blend even while no material uses it
@@ -89,16 +98,57 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     image.file_format = "OPEN_EXR"
     if save_dir:
         os.makedirs(save_dir, exist_ok=True)
-        image.filepath_raw = os.path.join(save_dir, bpy.path.clean_name(name) + ".exr")
-        image.save()
+        path = os.path.join(save_dir, bpy.path.clean_name(name) + ".exr")
+        write_map(path, env, _layout(kind))  # atomic: a previous map stays until this is whole
         if image.packed_file:
             image.unpack(method="REMOVE")
+        _read_from(image, path)
         image[NEEDS_PACK] = False
     else:
         image[NEEDS_PACK] = True  # packed when the .blend is saved (pack_pending)
     image.update()
     touch(image)
     return image
+
+
+def _layout(kind: str) -> str | None:
+    """The EXR ``envmap`` of an image the add-on made: maps are lat-long, composites none."""
+    return "latlong" if kind == KIND else None
+
+
+def _read_from(image, path: str = ""):
+    """Make ``image`` a file image reading ``path`` (or its packed file when ``path`` is
+    empty), and load its pixels from there now."""
+    if path:
+        image.filepath_raw = path
+    if image.source != "FILE":
+        image.source = "FILE"  # reloads from the file (or the packed data)
+    else:
+        image.reload()
+    images.set_linear(image)
+
+
+def pack(image):
+    """Pack ``image``'s pixels into the .blend as the engine's compressed half-float EXR (the
+    same file `store_map` saves), instead of Blender's uncompressed float32 one; Blender's own
+    when that cannot be written (the map is never lost on save)."""
+    pixels = images.read_pixels(image)[..., :3]
+    try:
+        with tempfile.TemporaryDirectory(prefix="vr-pack-") as folder:
+            path = os.path.join(folder, bpy.path.clean_name(image.name) + ".exr")
+            write_map(path, pixels, _layout(images.created(image)))
+            with open(path, "rb") as f:
+                data = f.read()
+    except (ImageError, OSError):
+        # No OpenImageIO, or no room for the temporary file: this runs while the .blend is
+        # saved, so keep the pixels the way Blender can (its own, uncompressed, EXR).
+        image.pack()
+        return
+    if image.packed_file:
+        image.unpack(method="REMOVE")
+    image.filepath_raw = "//" + bpy.path.clean_name(image.name) + ".exr"  # the unpack name
+    image.pack(data=data, data_len=len(data))
+    _read_from(image)
 
 
 def show_pixels(image, env: np.ndarray):
@@ -125,7 +175,7 @@ def pack_pending():
     """Pack every map (or composite) regenerated since the last save."""
     for image in bpy.data.images:
         if images.created(image) is not None and image.get(NEEDS_PACK):
-            image.pack()
+            pack(image)
             image[NEEDS_PACK] = False
 
 

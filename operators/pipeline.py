@@ -21,9 +21,14 @@ import numpy as np
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table
-from . import bounds
+from ..virtual_reflections.prefilter import prefilter_latlong
+from . import bounds, plate, shading
+from .ground_nodes import GroundLookup
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
+SHADED_GROUND = ("REPLACE", "MODULATE", "MIX")  # looks whose material reads the ground itself
+SHARP_GROUND = 0.1  # roughness under which the ground is read per shading point (sharp)
+ALL_FRAMES = 1048574  # Blender's longest frame range: an image user mapping frame n to n
 
 
 @dataclass
@@ -156,32 +161,90 @@ def objects_centre(depsgraph, objects) -> np.ndarray:
     return 0.5 * (low + high)
 
 
-def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
-    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
-    ground plane seen from the centre of their bounding box (engine ground.py), or from
-    ``centre`` (world space; Update Every Frame passes the centre smoothed over frames). Falls
-    back to the view's (the distant camera view) when the centre is not above the ground or
-    the ground is not below the camera."""
+def _floor(view, scene, depsgraph, objects, centre=None):
+    """(the ground's world height, the objects' world centre) when Camera View + Ground applies
+    to ``objects``, else None: another method, no perspective camera, the centre not above
+    the ground, or a "ground" at or above the camera (the objects stand on a column or a table
+    above it: no ground the plate could show)."""
     settings = scene.virtual_reflections
     if settings.method != "GROUND" or view.params.method != "camera" or not objects:
-        return view.params
+        return None
     centre = objects_centre(depsgraph, objects) if centre is None else np.asarray(centre)
     floor = ground_height(scene, depsgraph, objects)
-    height = float(centre[2]) - floor
     camera_z = float(np.linalg.inv(view.projection.world_to_camera)[2, 3])
-    if height < MIN_HEIGHT or camera_z <= floor + MIN_HEIGHT:
-        # Not above the ground, or a "ground" at or above the camera (the objects stand on a
-        # column or a table above it): no ground the plate could show; the distant view.
+    if float(centre[2]) - floor < MIN_HEIGHT or camera_z <= floor + MIN_HEIGHT:
+        return None
+    return floor, centre
+
+
+def map_roughness(scene, objects) -> float:
+    """The roughness the map of ``objects`` is pre-filtered for: in the Mix look (Glossy: the
+    map over the material's own surface) the roughest object's surface (shading.roughness);
+    0 in the others: Replace and Modulate are the paper's mirror modes (chrome, car paint),
+    and in the World look the renderer's own BSDF blurs the world."""
+    if scene.virtual_reflections.combine != "MIX":
+        return 0.0
+    return max((shading.roughness(o) for o in objects), default=0.0)
+
+
+def per_point_ground(scene, objects) -> bool:
+    """Whether the materials of ``objects`` read the ground per shading point: the Replace,
+    Modulate and Mix looks of sharp surfaces (a rough one's map holds the ground seen from its
+    centre, blurred by `map_roughness`, where a sharp lookup per point would not be)."""
+    combine = scene.virtual_reflections.combine
+    return combine in SHADED_GROUND and map_roughness(scene, objects) < SHARP_GROUND
+
+
+def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
+    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
+    world's horizon and (in the World look) the ground plane seen from the centre of their
+    bounding box (engine ground.py), or from ``centre`` (world space; Update Every Frame passes
+    the centre smoothed over frames). In the Replace, Modulate and Mix looks the material reads
+    the ground per shading point (`ground_lookup`), so their map is the camera view with the
+    world's horizon, one table for every pose. Falls back to the view's (the distant camera
+    view) when the ground does not apply (`_floor`)."""
+    found = _floor(view, scene, depsgraph, objects, centre)
+    if found is None:
         return view.params
+    floor, centre = found
+    up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
+    if per_point_ground(scene, objects):
+        return dataclasses.replace(view.params, up=up)
     origin = bounds.to_engine_frame(view.projection, point=centre)
-    up = bounds.to_engine_frame(view.projection, vector=(0.0, 0.0, 1.0))
     # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
     # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
     # jitter that moves the object by less than a pixel does not rebuild the map.
     step = 0.25 * max(origin[2], 1e-3) / view.params.intrinsics[0]
-    ground = tuple(round(v / step) * step for v in (*origin, height))
-    up = tuple(round(v, 4) for v in up)
+    ground = tuple(round(v / step) * step for v in (*origin, float(centre[2]) - floor))
     return dataclasses.replace(view.params, method="ground", ground=ground, up=up)
+
+
+def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None:
+    """What a Replace, Modulate or Mix material of ``objects`` needs to read the ground the
+    objects stand on from the plate ``image`` per shading point (ground_nodes.py), or None
+    when Camera View + Ground does not apply (another method or look, `_floor`)."""
+    if not per_point_ground(scene, objects):
+        return None
+    found = _floor(view, scene, depsgraph, objects)
+    if found is None:
+        return None
+    fx, fy, cx, cy = view.params.intrinsics
+    height, width = view.plate_shape
+    frames = None
+    if image.source in ("SEQUENCE", "MOVIE"):
+        user = plate.background_user(scene, image)
+        if user is not None and user.frame_duration > 0:
+            frames = (user.frame_duration, user.frame_start, user.frame_offset, user.use_cyclic)
+        else:
+            frames = (ALL_FRAMES, 1, 0, False)  # the scene's frame n shows the plate's frame n
+    return GroundLookup(
+        image,
+        found[0],
+        (fx / width, fy / height),
+        (cx / width, 1 - cy / height),
+        width / height,
+        frames,
+    )
 
 
 def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=None):
@@ -206,13 +269,14 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
     return boxes, extents, problems
 
 
-def build_map(pixels, box, map_params, width, report, name=None, pyramids=None):
+def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0, pyramids=None):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
     -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable). The table
     comes from the engine's cache when the plate size, box, params and width were seen before
     (counted in ``report.tables``). With a ``name``, the segmentation's advice goes into the
-    report's warnings (`fit_warnings`). ``pyramids``: the plate's pyramids (a dict kept with
-    the plate, `plate.PlateFrame.pyramids`), shared by every map of these pixels."""
+    report's warnings (`fit_warnings`). A ``roughness`` over prefilter.SHARP pre-filters the
+    map for it (`map_roughness`). ``pyramids``: the plate's pyramids (a dict kept with the
+    plate, `plate.PlateFrame.pyramids`), shared by every map of these pixels."""
     h, w = pixels.shape[:2]
     with report.timed("table"):
         misses = lookup_table.cache_info().misses
@@ -223,6 +287,9 @@ def build_map(pixels, box, map_params, width, report, name=None, pyramids=None):
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
     with report.timed("gather"):
         env = apply_table(table, pixels, pyramids)
+    if roughness > 0:
+        with report.timed("prefilter"):
+            env = prefilter_latlong(env, roughness)
     return env, table
 
 

@@ -191,7 +191,8 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
         if _written.get(image.name) == built_from and tuple(image.size) == (width, width // 2):
             result.unchanged.append(image.name)
             continue
-        env, _ = pipeline.build_map(current.pixels, held, shaped, width, result)
+        rough = pipeline.map_roughness(scene, objs)
+        env, _ = pipeline.build_map(current.pixels, held, shaped, width, result, roughness=rough)
         with result.timed("image"):
             _write_map(image, env)
         _written[image.name] = built_from

@@ -39,7 +39,9 @@ import math
 
 import bpy
 
+from .ground_nodes import mix_ground
 from .images import CREATED
+from .nodes import find_or_new_group, math_node, new_node
 
 LOOKUP_GROUP = "VR Camera LatLong"
 LATLONG_GROUP = "VR LatLong"
@@ -51,7 +53,6 @@ ENVIRONMENT_NODE = "VR Environment"  # the world's map node
 
 RECORD = "vr_shading"  # on objects: what attach() replaced
 WORLD_RECORD = "vr_world"  # on scenes: what attach_world() replaced
-_GROUP_VERSION = 1  # bump when the lookup groups' contents change; old ones are rebuilt
 
 _USE_NODES_DEPRECATED = bpy.app.version >= (5, 0, 0)
 
@@ -65,7 +66,7 @@ def ensure_latlong_group():
     Input ``Camera Vector``: a direction in Vector Transform's camera space (x right, y up,
     z forward; any length). Outputs as in `ensure_lookup_group`.
     """
-    group = _find_or_new_group(LATLONG_GROUP, "latlong")
+    group = find_or_new_group(LATLONG_GROUP, "latlong")
     if group.nodes:
         return group
     iface = group.interface
@@ -74,40 +75,40 @@ def ensure_latlong_group():
     iface.new_socket("Equirect", in_out="OUTPUT", socket_type="NodeSocketVector")
 
     nodes, links = group.nodes, group.links
-    g_in = _node(nodes, "NodeGroupInput", "Group Input", (-800, 0))
-    g_out = _node(nodes, "NodeGroupOutput", "Group Output", (700, 0))
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-800, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (700, 0))
 
     # Product camera frame: +X is the plate's left, so flip x (docs/conventions.md).
-    flip = _node(nodes, "ShaderNodeVectorMath", "To Product Frame", (-600, 0))
+    flip = new_node(nodes, "ShaderNodeVectorMath", "To Product Frame", (-600, 0))
     flip.operation = "MULTIPLY"
     flip.inputs[1].default_value = (-1.0, 1.0, 1.0)
     links.new(g_in.outputs["Camera Vector"], flip.inputs[0])
 
-    xyz = _node(nodes, "ShaderNodeSeparateXYZ", "Product XYZ", (-400, 0))
+    xyz = new_node(nodes, "ShaderNodeSeparateXYZ", "Product XYZ", (-400, 0))
     links.new(flip.outputs["Vector"], xyz.inputs["Vector"])
     x, y, z = xyz.outputs["X"], xyz.outputs["Y"], xyz.outputs["Z"]
 
     # lon = atan2(X, Z); lat = atan2(Y, |(X, Z)|) -- no normalisation and no asin domain edge.
-    lon = _math(nodes, links, "ARCTAN2", "Longitude", (-200, 150), x, z)
-    xz = _node(nodes, "ShaderNodeCombineXYZ", "XZ", (-200, -50))
+    lon = math_node(nodes, links, "ARCTAN2", "Longitude", (-200, 150), x, z)
+    xz = new_node(nodes, "ShaderNodeCombineXYZ", "XZ", (-200, -50))
     links.new(x, xz.inputs["X"])
     links.new(z, xz.inputs["Z"])
-    xz_len = _node(nodes, "ShaderNodeVectorMath", "XZ Length", (0, -50))
+    xz_len = new_node(nodes, "ShaderNodeVectorMath", "XZ Length", (0, -50))
     xz_len.operation = "LENGTH"
     links.new(xz.outputs["Vector"], xz_len.inputs[0])
-    lat = _math(nodes, links, "ARCTAN2", "Latitude", (200, -50), y, xz_len.outputs["Value"])
+    lat = math_node(nodes, links, "ARCTAN2", "Latitude", (200, -50), y, xz_len.outputs["Value"])
 
     # u = 0.5 - lon / 2π (map x grows to the right); v = 0.5 + lat / π (v grows upward).
-    u = _math(nodes, links, "MULTIPLY_ADD", "U", (200, 150), lon, -0.5 / math.pi, 0.5)
-    v = _math(nodes, links, "MULTIPLY_ADD", "V", (400, -50), lat, 1.0 / math.pi, 0.5)
-    uv = _node(nodes, "ShaderNodeCombineXYZ", "UV", (550, 100))
+    u = math_node(nodes, links, "MULTIPLY_ADD", "U", (200, 150), lon, -0.5 / math.pi, 0.5)
+    v = math_node(nodes, links, "MULTIPLY_ADD", "V", (400, -50), lat, 1.0 / math.pi, 0.5)
+    uv = new_node(nodes, "ShaderNodeCombineXYZ", "UV", (550, 100))
     links.new(u, uv.inputs["X"])
     links.new(v, uv.inputs["Y"])
     links.new(uv.outputs["Vector"], g_out.inputs["UV"])
 
     # Blender's equirectangular: u = 0.5 - atan2(d.y, d.x)/2π, v = 0.5 + atan2(d.z, |d.xy|)/π,
     # so d = (Z, X, Y) of the product frame gives the same (u, v) as above.
-    env = _node(nodes, "ShaderNodeCombineXYZ", "Equirect", (-200, -250))
+    env = new_node(nodes, "ShaderNodeCombineXYZ", "Equirect", (-200, -250))
     links.new(z, env.inputs["X"])
     links.new(x, env.inputs["Y"])
     links.new(y, env.inputs["Z"])
@@ -129,7 +130,7 @@ def ensure_lookup_group():
     a moving camera in both engines. Reused when present (found by its flag, so a user's group
     of the same name is left alone).
     """
-    group = _find_or_new_group(LOOKUP_GROUP, "lookup")
+    group = find_or_new_group(LOOKUP_GROUP, "lookup")
     if group.nodes:
         return group
     iface = group.interface
@@ -138,15 +139,15 @@ def ensure_lookup_group():
     iface.new_socket("Equirect", in_out="OUTPUT", socket_type="NodeSocketVector")
 
     nodes, links = group.nodes, group.links
-    g_in = _node(nodes, "NodeGroupInput", "Group Input", (-600, 0))
-    g_out = _node(nodes, "NodeGroupOutput", "Group Output", (200, 0))
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-600, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (200, 0))
     # Renderer camera space: x right, y up, z forward (measured the same in Cycles and EEVEE).
-    to_cam = _node(nodes, "ShaderNodeVectorTransform", "World to Camera", (-400, 0))
+    to_cam = new_node(nodes, "ShaderNodeVectorTransform", "World to Camera", (-400, 0))
     to_cam.vector_type = "VECTOR"
     to_cam.convert_from = "WORLD"
     to_cam.convert_to = "CAMERA"
     links.new(g_in.outputs["Vector"], to_cam.inputs["Vector"])
-    latlong = _node(nodes, "ShaderNodeGroup", "VR LatLong", (-200, 0))
+    latlong = new_node(nodes, "ShaderNodeGroup", "VR LatLong", (-200, 0))
     latlong.node_tree = ensure_latlong_group()
     links.new(to_cam.outputs["Vector"], latlong.inputs["Camera Vector"])
     links.new(latlong.outputs["UV"], g_out.inputs["UV"])
@@ -154,52 +155,13 @@ def ensure_lookup_group():
     return group
 
 
-def _find_or_new_group(name, kind):
-    """Our group of this kind (emptied when made by an older version of this module), or a new
-    empty one. Found by flag, never by name, so a user's group called ``name`` is left alone."""
-    for group in bpy.data.node_groups:
-        if group.get(CREATED) == kind and group.library is None:
-            if group.get("vr_version") != _GROUP_VERSION:
-                _clear_group(group)
-                group["vr_version"] = _GROUP_VERSION
-            return group
-    group = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    group[CREATED] = kind
-    group["vr_version"] = _GROUP_VERSION
-    return group
-
-
-def _clear_group(group):
-    group.nodes.clear()
-    group.interface.clear()
-
-
-def _node(nodes, bl_idname, name, location):
-    node = nodes.new(bl_idname)
-    node.name = node.label = name
-    node.location = location
-    return node
-
-
-def _math(nodes, links, operation, name, location, *inputs):
-    """A Math node; each input is a socket to link or a number to set. Returns its output."""
-    node = _node(nodes, "ShaderNodeMath", name, location)
-    node.operation = operation
-    for socket, value in zip(node.inputs, inputs):
-        if isinstance(value, bpy.types.NodeSocket):
-            links.new(value, socket)
-        else:
-            socket.default_value = value
-    return node.outputs["Value"]
-
-
 def _env_lookup(nodes, links, direction, image, location):
     """Lookup group + Environment Texture of ``image`` along the world ``direction`` socket."""
     x, y = location
-    lookup = _node(nodes, "ShaderNodeGroup", "VR Camera LatLong", (x, y))
+    lookup = new_node(nodes, "ShaderNodeGroup", "VR Camera LatLong", (x, y))
     lookup.node_tree = ensure_lookup_group()
     links.new(direction, lookup.inputs["Vector"])
-    tex = _node(nodes, "ShaderNodeTexEnvironment", "VR Environment", (x + 200, y))
+    tex = new_node(nodes, "ShaderNodeTexEnvironment", "VR Environment", (x + 200, y))
     tex.image = image
     tex.interpolation = "Linear"
     tex.projection = "EQUIRECTANGULAR"
@@ -210,24 +172,29 @@ def _env_lookup(nodes, links, direction, image, location):
 # --- per-mode reflection groups ---------------------------------------------------------------
 
 
-def _ensure_reflection_group(mode, image):
+def _ensure_reflection_group(mode, image, ground=None):
     """The group "VR Reflection <mode> [<image>]": a shader from the map along the reflection.
 
     Inputs by mode: REPLACE ``Strength``; MODULATE ``Base Color``, ``Strength``;
     MIX ``Shader`` (the material's own surface), ``Strength``, ``IOR``. Output ``Shader``.
-    Reused when a group made by this module for the same mode and image exists.
+    With ``ground`` (a ground_nodes.GroundLookup) the ground is looked up per shading point
+    and mixed over the map (Camera View + Ground). Reused when a group made by this module for
+    the same mode, image and ground exists.
     """
+    signature = ground.signature() if ground is not None else ""
     for group in bpy.data.node_groups:
         if (
             group.get(CREATED) == "reflection"
             and group.get("vr_mode") == mode
             and group.library is None
             and _group_image(group) == image
+            and group.get("vr_ground", "") == signature
         ):
             return group
     group = bpy.data.node_groups.new(f"{REFLECTION_GROUP} {mode} [{image.name}]", "ShaderNodeTree")
     group[CREATED] = "reflection"
     group["vr_mode"] = mode
+    group["vr_ground"] = signature
 
     iface = group.interface
     if mode == "MIX":
@@ -243,25 +210,28 @@ def _ensure_reflection_group(mode, image):
     iface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
 
     nodes, links = group.nodes, group.links
-    g_in = _node(nodes, "NodeGroupInput", "Group Input", (-900, 0))
-    g_out = _node(nodes, "NodeGroupOutput", "Group Output", (600, 0))
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-900, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (600, 0))
 
     # The mirror direction: the camera ray (-Incoming) reflected about the shading normal.
-    geometry = _node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
-    view = _node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
+    geometry = new_node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
+    view = new_node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
     view.operation = "SCALE"
     view.inputs["Scale"].default_value = -1.0
     links.new(geometry.outputs["Incoming"], view.inputs[0])
-    reflect = _node(nodes, "ShaderNodeVectorMath", "Reflection", (-500, 300))
+    reflect = new_node(nodes, "ShaderNodeVectorMath", "Reflection", (-500, 300))
     reflect.operation = "REFLECT"
     links.new(view.outputs["Vector"], reflect.inputs[0])
     links.new(geometry.outputs["Normal"], reflect.inputs[1])
     env = _env_lookup(nodes, links, reflect.outputs["Vector"], image, (-300, 300))
+    if ground is not None:
+        position = geometry.outputs["Position"]
+        env = mix_ground(nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600))
 
-    emission = _node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))
+    emission = new_node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))
     if mode == "MODULATE":
         # GL_MODULATE (§3.1): material colour times the map.
-        tint = _node(nodes, "ShaderNodeVectorMath", "Modulate", (50, 200))
+        tint = new_node(nodes, "ShaderNodeVectorMath", "Modulate", (50, 200))
         tint.operation = "MULTIPLY"
         links.new(env, tint.inputs[0])
         links.new(g_in.outputs["Base Color"], tint.inputs[1])
@@ -271,14 +241,14 @@ def _ensure_reflection_group(mode, image):
 
     if mode == "MIX":
         emission.inputs["Strength"].default_value = 1.0
-        fresnel = _node(nodes, "ShaderNodeFresnel", "Fresnel", (-100, -100))
+        fresnel = new_node(nodes, "ShaderNodeFresnel", "Fresnel", (-100, -100))
         links.new(g_in.outputs["IOR"], fresnel.inputs["IOR"])
-        factor = _math(
+        factor = math_node(
             nodes, links, "MULTIPLY", "Reflection Weight", (100, -100), fresnel.outputs[0], 1.0
         )
         factor.node.use_clamp = True
         links.new(g_in.outputs["Strength"], factor.node.inputs[1])
-        mix = _node(nodes, "ShaderNodeMixShader", "Mix", (400, 0))
+        mix = new_node(nodes, "ShaderNodeMixShader", "Mix", (400, 0))
         links.new(factor, mix.inputs["Fac"])
         links.new(g_in.outputs["Shader"], mix.inputs[1])
         links.new(emission.outputs["Emission"], mix.inputs[2])
@@ -340,13 +310,15 @@ def reflecting(scene, names=None) -> dict:
     return found
 
 
-def attach(obj, image, mode, strength=1.0, ior=1.45):
+def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
     """Put ``image`` (a camera-frame lat-long map) on every material slot of ``obj``.
 
     mode: 'REPLACE' (emission of the map, §3.1's GL replace), 'MODULATE' (map times the
     material's base colour, GL modulate), 'MIX' (the material's own surface mixed with the map,
     factor strength x Fresnel(ior)), or 'WORLD' (`attach_world` on the object's scene; the
-    materials are left alone).
+    materials are left alone). ground: a ground_nodes.GroundLookup for the first three: the
+    ground the object stands on is read from the plate per shading point (Camera View +
+    Ground).
 
     Each slot gets an object-level copy of its material (`slot.link = 'OBJECT'`), so the
     original material and a mesh shared with other objects are untouched. An object without
@@ -377,14 +349,16 @@ def attach(obj, image, mode, strength=1.0, ior=1.45):
             if mat is not None:
                 _check_local(mat, f"material {mat.name!r} on {obj.name!r}")
 
+    old_group = None
     if is_attached(obj):
-        detach(obj)
+        old_group = obj[RECORD].get("group")
+        detach(obj, tidy=False)  # its groups may serve again: tidied below
 
     added_slot = not obj.material_slots
     if added_slot:
         obj.data.materials.append(None)
     previous = [(link, object_mat) for link, _, object_mat in slot_states(obj)]
-    group = _ensure_reflection_group(mode, image)
+    group = _ensure_reflection_group(mode, image, ground)
     copies = {}  # original material (or None for an empty slot) -> our copy
     for slot in obj.material_slots:
         source = slot.material
@@ -402,11 +376,13 @@ def attach(obj, image, mode, strength=1.0, ior=1.45):
         "copies": list(copies.values()),
         "group": group,
     }
+    _remove_unused_groups(old_group)
 
 
-def detach(obj):
+def detach(obj, tidy=True):
     """Undo `attach`: restore every slot's link and object-level material, then delete the
-    copies, reflection groups and lookup group this module made once nothing uses them."""
+    copies, and (``tidy``) the reflection and lookup groups this module made once nothing uses
+    them."""
     record = obj.get(RECORD)
     if record is None:
         return
@@ -442,7 +418,8 @@ def detach(obj):
     for copy in copies:
         if copy is not None and copy.get(CREATED) == "material" and copy.users == 0:
             bpy.data.materials.remove(copy)
-    _remove_unused_groups(group)
+    if tidy:
+        _remove_unused_groups(group)
 
 
 def _check_local(id_data, what):
@@ -513,11 +490,11 @@ def _nodes_from_settings(mat):
     mat.use_nodes = True
     tree = mat.node_tree
     tree.nodes.clear()
-    bsdf = _node(tree.nodes, "ShaderNodeBsdfPrincipled", "Principled BSDF", (-300, 0))
+    bsdf = new_node(tree.nodes, "ShaderNodeBsdfPrincipled", "Principled BSDF", (-300, 0))
     bsdf.inputs["Base Color"].default_value = tuple(mat.diffuse_color)
     bsdf.inputs["Metallic"].default_value = mat.metallic
     bsdf.inputs["Roughness"].default_value = mat.roughness
-    out = _node(tree.nodes, "ShaderNodeOutputMaterial", "Material Output", (0, 0))
+    out = new_node(tree.nodes, "ShaderNodeOutputMaterial", "Material Output", (0, 0))
     tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
 
 
@@ -526,11 +503,12 @@ def _wire(tree, mode, group, strength, ior, fallback_color):
     nodes, links = tree.nodes, tree.links
     outputs = [n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output]
     if not outputs:
-        outputs = [_node(nodes, "ShaderNodeOutputMaterial", "Material Output", (300, 0))]
+        outputs = [new_node(nodes, "ShaderNodeOutputMaterial", "Material Output", (300, 0))]
     for i, out in enumerate(outputs):
         surface = out.inputs["Surface"]
         source = surface.links[0].from_socket if surface.is_linked else None
-        node = _node(nodes, "ShaderNodeGroup", f"VR Reflection{'' if i == 0 else f' {i}'}", (0, 0))
+        name = f"VR Reflection{'' if i == 0 else f' {i}'}"
+        node = new_node(nodes, "ShaderNodeGroup", name, (0, 0))
         node.node_tree = group
         node.location = (out.location.x, out.location.y + 250)
         node.inputs["Strength"].default_value = strength
@@ -545,6 +523,28 @@ def _wire(tree, mode, group, strength, ior, fallback_color):
             else:
                 node.inputs["Base Color"].default_value = base if base else fallback_color
         links.new(node.outputs["Shader"], surface)
+
+
+GLOSSY_NODES = ("ShaderNodeBsdfPrincipled", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic")
+
+
+def roughness(obj) -> float:
+    """The roughness of ``obj``'s surface, for pre-filtering its map (Replace, Modulate, Mix):
+    the first material slot's Principled or Glossy BSDF "Roughness" when not linked (a linked
+    one, a texture, counts as 0.5), else the material's viewport roughness; 0 without a
+    material. The copies `attach` made keep the original's nodes, so this reads the same
+    before and after."""
+    for slot in obj.material_slots:
+        mat = slot.material
+        if mat is None:
+            continue
+        tree = mat.node_tree if (mat.use_nodes or _USE_NODES_DEPRECATED) else None
+        for node in tree.nodes if tree is not None else ():
+            if node.bl_idname in GLOSSY_NODES and "Roughness" in node.inputs:
+                socket = node.inputs["Roughness"]
+                return 0.5 if socket.is_linked else float(socket.default_value)
+        return float(mat.roughness)
+    return 0.0
 
 
 def _base_color(shader_socket):
@@ -583,7 +583,8 @@ def _remove_unused_groups(*groups):
     for group in groups:
         if group is not None and group.get(CREATED) == "reflection" and group.users == 0:
             bpy.data.node_groups.remove(group)
-    for kind in ("lookup", "latlong"):  # outer before inner: the inner one is used by the outer
+    # Outer before inner: the inner one is used by the outer.
+    for kind in ("lookup", "latlong", "ground"):
         for group in list(bpy.data.node_groups):
             if group.get(CREATED) == kind and group.users == 0:
                 bpy.data.node_groups.remove(group)
@@ -626,41 +627,41 @@ def attach_world(scene, image, strength=1.0):
     nodes, links = tree.nodes, tree.links
     nodes.clear()
     # In a world shader the camera (or reflected) ray travels along -Incoming.
-    geometry = _node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
-    view = _node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
+    geometry = new_node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
+    view = new_node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
     view.operation = "SCALE"
     view.inputs["Scale"].default_value = -1.0
     links.new(geometry.outputs["Incoming"], view.inputs[0])
 
     # Vector Transform's camera space from the scene camera's axes: x right, y up, z forward.
-    camera = _node(nodes, "ShaderNodeCombineXYZ", "Camera Space", (-200, 0))
+    camera = new_node(nodes, "ShaderNodeCombineXYZ", "Camera Space", (-200, 0))
     for i, (axis, sign) in enumerate((("X", 1.0), ("Y", 1.0), ("Z", -1.0))):
-        column = _node(nodes, "ShaderNodeCombineXYZ", f"Scene Camera {axis}", (-900, -200 * i))
+        column = new_node(nodes, "ShaderNodeCombineXYZ", f"Scene Camera {axis}", (-900, -200 * i))
         for row in range(3):
             _drive(column.inputs[row], scene, f"camera.matrix_world[{i}][{row}]")
-        unit = _node(nodes, "ShaderNodeVectorMath", f"Camera {axis} Unit", (-700, -200 * i))
+        unit = new_node(nodes, "ShaderNodeVectorMath", f"Camera {axis} Unit", (-700, -200 * i))
         unit.operation = "NORMALIZE"  # the camera object may be scaled
         links.new(column.outputs["Vector"], unit.inputs[0])
-        dot = _node(nodes, "ShaderNodeVectorMath", f"Along Camera {axis}", (-500, -200 * i))
+        dot = new_node(nodes, "ShaderNodeVectorMath", f"Along Camera {axis}", (-500, -200 * i))
         dot.operation = "DOT_PRODUCT"
         links.new(view.outputs["Vector"], dot.inputs[0])
         links.new(unit.outputs["Vector"], dot.inputs[1])
-        component = _math(
+        component = math_node(
             nodes, links, "MULTIPLY", f"Camera {axis}", (-350, -200 * i), dot.outputs["Value"], sign
         )
         links.new(component, camera.inputs[i])
 
-    latlong = _node(nodes, "ShaderNodeGroup", "VR LatLong", (0, 0))
+    latlong = new_node(nodes, "ShaderNodeGroup", "VR LatLong", (0, 0))
     latlong.node_tree = ensure_latlong_group()
     links.new(camera.outputs["Vector"], latlong.inputs["Camera Vector"])
-    tex = _node(nodes, "ShaderNodeTexEnvironment", ENVIRONMENT_NODE, (200, 0))
+    tex = new_node(nodes, "ShaderNodeTexEnvironment", ENVIRONMENT_NODE, (200, 0))
     tex.image = image
     tex.interpolation = "Linear"
     links.new(latlong.outputs["Equirect"], tex.inputs["Vector"])
-    background = _node(nodes, "ShaderNodeBackground", "Background", (500, 0))
+    background = new_node(nodes, "ShaderNodeBackground", "Background", (500, 0))
     background.inputs["Strength"].default_value = strength
     links.new(tex.outputs["Color"], background.inputs["Color"])
-    out = _node(nodes, "ShaderNodeOutputWorld", "World Output", (700, 0))
+    out = new_node(nodes, "ShaderNodeOutputWorld", "World Output", (700, 0))
     links.new(background.outputs["Background"], out.inputs["Surface"])
 
     record = {"world": world}

@@ -2,7 +2,7 @@
 
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
-    python -m study scenes [--quick] [--cases failures] [--out DIR] [--jobs 1]
+    python -m study scenes [--quick] [--cases failures|inter] [--out DIR] [--jobs 1]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -74,10 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--cases",
-        choices=("default", "failures"),
+        choices=("default", "failures", "inter"),
         default="default",
         help="failures: the failure cases instead (floating, looking up, wall, border, large, "
-        "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md",
+        "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md; "
+        "inter: two or three mirrors side by side, one pass against the passes: "
+        "DIR/scenes3d_inter.json and the 'Inter-reflections' table",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")

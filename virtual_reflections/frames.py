@@ -10,13 +10,15 @@ MOVIE_EXTENSIONS = {
     ".avi", ".dv", ".flv", ".m2t", ".m2ts", ".m4v", ".mkv", ".mov", ".mp4", ".mpeg",
     ".mpg", ".mts", ".mxf", ".ogg", ".ogv", ".webm", ".wmv",
 }  # fmt: skip
-FRAMES_HELP = "frames: 1-240, 1-10x2 (every 2nd), 5, or a list like 1,3,7-9"
+FRAMES_HELP = "frames: 1-240 or 1..240, 1-10x2 (every 2nd), 5, or a list like 1,3,7-9"
 MAX_FRAMES = 1_000_000
-_PART = re.compile(r"^(-?\d+)(?:-(-?\d+)(?:x(\d+))?)?$")
+_PART = re.compile(r"^(-?\d+)(?:(?:-|\.\.)(-?\d+)(?:x(\d+))?)?$")
 
 
 def parse_frames(text: str) -> list[int]:
     """``"1-240"``, ``"1-10x2"``, ``"5"``, ``"1,3,7-9"`` -> sorted distinct frame numbers.
+    Blender's own syntax (``blender -f 1..10``, ``1,3,5..7``: ``..`` joins the first and last
+    frame, both included) is accepted beside it.
 
     Raises ValueError (one line, naming the bad part) for anything else, an empty list, an
     end before its start, a step below 1, or more than MAX_FRAMES frames.

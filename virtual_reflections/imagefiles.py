@@ -1,5 +1,5 @@
-"""Reading plates and writing maps, with OpenImageIO (and the OpenEXR package for the
-standard `envmap` header attribute, which OIIO's Python API cannot write).
+"""Reading plates and writing maps, with OpenImageIO alone (its EXR writer also writes the
+standard `envmap` header attribute, from the spec's ``textureformat``).
 
 Colour spaces are named, never inferred from OIIO's built-in config (whose `scene_linear`
 role is ACEScg, not Rec.709):
@@ -465,21 +465,36 @@ def write_map(path: str, pixels: np.ndarray, layout: str | None = None, half: bo
     return clamped
 
 
-def _write_exr(path: str, pixels: np.ndarray, layout: str | None, half: bool) -> None:
-    import OpenEXR
+ENVMAP_TEXTUREFORMAT = {"latlong": "LatLong Environment", "cube": "CubeFace Environment"}
+LINEAR_TAG = "lin_rec709_scene"  # OIIO/OCIO's interop name of scene-linear Rec.709
 
-    header = {
-        "compression": OpenEXR.ZIP_COMPRESSION,
-        "type": OpenEXR.scanlineimage,
-        "chromaticities": REC709_CHROMATICITIES,
-    }
+
+def exr_spec(width: int, height: int, channels: int, fmt: str, layout: str | None = None):
+    """The OIIO ImageSpec of every EXR the engine writes: ZIP-compressed, Rec.709
+    chromaticities, tagged scene-linear Rec.709 (OIIO 3.1+ writes it as the header's
+    ``colorInteropID``), and for a map the standard ``envmap`` attribute (LATLONG or CUBE:
+    OIIO's EXR writer sets it from ``textureformat``; no OpenEXR package needed)."""
+    oiio = _oiio()
+    spec = oiio.ImageSpec(width, height, channels, fmt)
+    spec.attribute("compression", "zip")
+    spec.attribute("chromaticities", "float[8]", REC709_CHROMATICITIES)
+    spec.attribute("oiio:ColorSpace", LINEAR_TAG)
     if layout is not None:
-        header["envmap"] = {"latlong": OpenEXR.ENVMAP_LATLONG, "cube": OpenEXR.ENVMAP_CUBE}[layout]
-    data = pixels.astype(np.float16) if half else pixels
-    try:
-        OpenEXR.File(header, {"RGB": data}).write(path)
-    except Exception as exc:
-        raise ImageError(f"cannot write {path}: {_first_line(str(exc))}") from exc
+        spec.attribute("textureformat", ENVMAP_TEXTUREFORMAT[layout])
+    return spec
+
+
+def _write_exr(path: str, pixels: np.ndarray, layout: str | None, half: bool) -> None:
+    oiio = _oiio()
+    h, w, c = pixels.shape
+    out = oiio.ImageOutput.create(path)
+    if out is None:
+        raise ImageError(f"cannot write {path}: {_first_line(oiio.geterror())}")
+    spec = exr_spec(w, h, c, "half" if half else "float", layout)
+    ok = out.open(path, spec) and out.write_image(np.ascontiguousarray(pixels, np.float32))
+    ok = out.close() and ok
+    if not ok:
+        raise ImageError(f"cannot write {path}: {_first_line(out.geterror())}")
 
 
 def _write_oiio(path: str, pixels: np.ndarray, ext: str) -> None:
@@ -572,8 +587,7 @@ def write_rgba(path: str, rgba: np.ndarray) -> None:
         out = oiio.ImageOutput.create(path)
         if out is None:
             raise ImageError(f"cannot write {path}: {_first_line(oiio.geterror())}")
-        spec = oiio.ImageSpec(w, h, 4, "float")
-        spec.attribute("compression", "zip")
+        spec = exr_spec(w, h, 4, "float")
         ok = out.open(tmp, spec) and out.write_image(np.ascontiguousarray(rgba, np.float32))
         ok = out.close() and ok
         if not ok:

@@ -7,8 +7,10 @@ roughnesses), and every method's render of the subject alone composited over the
 - `run`: renders, Generate per add-on method, scores on the subject's pixels (bpy);
 - `report`: summaries, the tables of docs/scenes3d.md, the charts (no bpy).
 
-`python -m study scenes [--quick] [--cases failures] [--out DIR] [--jobs 1]` runs it
-(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5). Research
+`python -m study scenes [--quick] [--cases failures|inter] [--out DIR] [--jobs 1]` runs it
+(`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5),
+`--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
+issue 11, item 4). Research
 only: bpy is imported when a run starts (once per process); the product never imports this.
 """
 
@@ -35,7 +37,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures")
+CASES = ("default", "failures", "inter")
 
 
 @dataclass(frozen=True)
@@ -43,19 +45,23 @@ class Config:
     quick: bool = False
     width: int = 320  # x 180
     samples: int = 32
-    cases: str = "default"  # or "failures": scenes.failure_set, with the ground-chosen row
+    cases: str = "default"  # "failures": scenes.failure_set, with the ground-chosen row;
+    # "inter": scenes.inter_set, one pass against the passes (inter.py)
 
     def specs(self):
         if self.cases == "failures":
             return scenes.failure_set(self.quick)
+        if self.cases == "inter":
+            return scenes.inter_set(self.quick)
         return scenes.scene_set(self.quick)
 
     @property
     def name(self) -> str:
-        """The outputs' stem: scenes3d, scenes3d_quick, scenes3d_failures(_quick)."""
+        """The outputs' stem: scenes3d, scenes3d_quick, scenes3d_failures(_quick),
+        scenes3d_inter(_quick)."""
         return (
             "scenes3d"
-            + ("_failures" if self.cases == "failures" else "")
+            + ("" if self.cases == "default" else f"_{self.cases}")
             + ("_quick" if self.quick else "")
         )
 
@@ -64,6 +70,16 @@ FULL = Config()
 QUICK = Config(quick=True, width=256, samples=16)
 FAILURES = Config(cases="failures")
 QUICK_FAILURES = Config(quick=True, width=160, samples=8, cases="failures")
+INTER = Config(cases="inter")
+QUICK_INTER = Config(quick=True, width=192, samples=16, cases="inter")
+CONFIGS = {  # (cases, quick) -> Config
+    ("default", False): FULL,
+    ("default", True): QUICK,
+    ("failures", False): FAILURES,
+    ("failures", True): QUICK_FAILURES,
+    ("inter", False): INTER,
+    ("inter", True): QUICK_INTER,
+}
 
 
 def _json_safe(value):
@@ -82,7 +98,7 @@ def run_study(config: Config, log=None, keep=None):
     ``crops`` {scene: {column: display crop}} for the contact sheet. ``keep``: a folder to keep
     the renders in (default: a temporary one, removed)."""
     try:
-        from . import run
+        from . import inter, run
     except ImportError as exc:  # bpy (or Blender's own modules) not importable
         raise ScenesInputError(f"the 3D study needs the bpy module: {exc}") from exc
     say = log or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -90,9 +106,14 @@ def run_study(config: Config, log=None, keep=None):
     work = pathlib.Path(keep) if keep else pathlib.Path(tempfile.mkdtemp(prefix="vr_scenes3d_"))
     started = time.perf_counter()
     try:
-        records, crops, methods = run.run_scenes(
-            specs, work, config.width, config.samples, say, config.cases == "failures"
-        )
+        if config.cases == "inter":
+            records, crops, methods = inter.run_scenes(
+                specs, work, config.width, config.samples, say
+            )
+        else:
+            records, crops, methods = run.run_scenes(
+                specs, work, config.width, config.samples, say, config.cases == "failures"
+            )
     finally:
         if not keep:
             shutil.rmtree(work, ignore_errors=True)
@@ -102,7 +123,7 @@ def run_study(config: Config, log=None, keep=None):
     data = {
         "command": COMMAND
         + (" --quick" if config.quick else "")
-        + (" --cases failures" if failures else ""),
+        + ("" if config.cases == "default" else f" --cases {config.cases}"),
         "quick": config.quick,
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
         "samples": config.samples,
@@ -121,6 +142,12 @@ def run_study(config: Config, log=None, keep=None):
         },
         "seconds": time.perf_counter() - started,
     }
+    if config.cases == "inter":
+        data["cases"] = "inter"
+        data["materials"] = [{"name": "mirror", "roughness": 0.0, "combine": "REPLACE"}]
+        data["baselines"] = [run.MEAN]
+        data["glossy_bounces"] = inter.GLOSSY_BOUNCES
+        data["default_method"] = methods[0]  # inter.run_scenes puts it first
     if failures:
         data["cases"] = "failures"
         data["default_method"] = (
@@ -143,10 +170,7 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
         )
     if cases not in CASES:
         raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
-    if cases == "failures":
-        config = QUICK_FAILURES if quick else FAILURES
-    else:
-        config = QUICK if quick else FULL
+    config = CONFIGS[cases, bool(quick)]
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
         try:
@@ -156,7 +180,8 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
     data, crops = run_study(config, log=log)
     from . import report
 
-    print(report.table_failures(data) if config.cases == "failures" else report.table_means(data))
+    table = {"failures": report.table_failures, "inter": report.table_inter}
+    print(table.get(config.cases, report.table_means)(data))
     print(
         f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s on {data['machine']['cores']} "
         f"cores (bpy {data['machine']['bpy']})"
@@ -174,6 +199,9 @@ def write_outputs(data, crops, target, name=None) -> None:
     name = name or ("scenes3d_quick" if data["quick"] else "scenes3d")
     if data.get("cases") == "failures":
         write_failures(data, crops, target, name)
+        return
+    if data.get("cases") == "inter":
+        write_inter(data, crops, target, name)
         return
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
     if importlib.util.find_spec("matplotlib") is None:
@@ -209,6 +237,24 @@ def write_failures(data, crops, target, name) -> None:
         report.chart_failures(data, target / "images" / f"{name}.png")
     md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
     report.add_failures_block(md, report.table_failures(data), data["command"])
+    print(
+        f"wrote {target / (name + '.json')}, {md} and the charts in {target / 'images'}",
+        file=sys.stderr,
+    )
+
+
+def write_inter(data, crops, target, name) -> None:
+    """OUT/NAME.json, the contact sheet (truth, one pass and auto per method) and the
+    "Inter-reflections" block of OUT/scenes3d(_quick).md (appended when missing)."""
+    from . import report
+
+    (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
+    if importlib.util.find_spec("matplotlib") is None:
+        print("matplotlib is not installed: no charts", file=sys.stderr)
+    else:
+        report.contact_sheet_inter(data, crops, target / "images" / f"{name}_examples.png")
+    md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
+    report.add_block(md, "inter", "Inter-reflections", report.table_inter(data), data["command"])
     print(
         f"wrote {target / (name + '.json')}, {md} and the charts in {target / 'images'}",
         file=sys.stderr,

@@ -172,25 +172,43 @@ def _suzanne(scene, name, size):
     return _object(scene, name, bm)
 
 
-def make_subject(scene, spec: Scene3D, material):
+def make_shape(scene, name, shape, size, material):
+    """A sphere, torus, Suzanne or the car, ``size`` across, standing on z = 0 at the origin."""
     b = build_scenes()
-    if spec.shape == "sphere":
-        obj = b.make_sphere(scene, "Subject", spec.size / 2)
-    elif spec.shape == "torus":
-        obj = _torus(scene, "Subject", spec.size)
-    elif spec.shape == "suzanne":
-        obj = _suzanne(scene, "Subject", spec.size)
-    elif spec.shape == "car":
-        obj = b.make_car(scene, "Subject", [material] * 4)
-        obj.scale = (spec.size / 4.1,) * 3
+    if shape == "sphere":
+        obj = b.make_sphere(scene, name, size / 2)
+    elif shape == "torus":
+        obj = _torus(scene, name, size)
+    elif shape == "suzanne":
+        obj = _suzanne(scene, name, size)
+    elif shape == "car":
+        obj = b.make_car(scene, name, [material] * 4)
+        obj.scale = (size / 4.1,) * 3
     else:
-        raise ValueError(f"unknown shape {spec.shape!r}")
+        raise ValueError(f"unknown shape {shape!r}")
     if not obj.data.materials:
         obj.data.materials.append(material)
+    return obj
+
+
+def make_subject(scene, spec: Scene3D, material):
+    obj = make_shape(scene, "Subject", spec.shape, spec.size, material)
     sx, sy = spec.subject_xy
     obj.location = (sx, sy, spec.lift)
     obj.rotation_euler = (0.0, 0.0, math.radians(spec.subject_yaw_deg))
     return obj
+
+
+def add_companions(scene, spec: Scene3D, material) -> list:
+    """The other mirror objects of an inter-reflection case ("Mirror 2", "Mirror 3", ...), with
+    the subject's material."""
+    objects = []
+    for i, c in enumerate(spec.companions):
+        obj = make_shape(scene, f"Mirror {i + 2}", c.shape, c.size, material)
+        obj.location = (c.x, c.y, spec.lift)
+        obj.rotation_euler = (0.0, 0.0, math.radians(c.yaw_deg))
+        objects.append(obj)
+    return objects
 
 
 def ground_material(spec: Scene3D):

@@ -30,12 +30,20 @@ from ..evaluate.metrics import psnr, si_rmse, ssim, to_display
 from . import build
 from .scenes import Scene3D
 
-# (name, roughness, the add-on's combine mode for it)
+# (name, roughness, the add-on's combine mode for it): the rough subjects in the World look
+# (their own glossy BSDF lit by the map) and in the Mix look (the map pre-filtered for their
+# roughness, issue 11 item 3), with IOR 4 and strength `MIX_STRENGTH`: the Mix weight
+# min(1, strength x Fresnel) is 1 at every angle (Fresnel >= 0.36 at IOR 4), so the map is
+# the whole reflection, as for a metal, and the material's own BSDF (lit by the true dome in
+# these renders) has no part in it; the truth and baselines are rendered once per roughness.
 MATERIALS = (
     ("mirror", 0.0, "REPLACE"),
     ("rough 0.15", 0.15, "WORLD"),
     ("rough 0.35", 0.35, "WORLD"),
+    ("rough 0.15, Mix", 0.15, "MIX"),
+    ("rough 0.35, Mix", 0.35, "MIX"),
 )
+MIX_IOR, MIX_STRENGTH = 4.0, 3.0
 PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
 BASELINES = (PROBE, STRETCHED, MEAN)
 METRICS = ("psnr", "ssim", "si_rmse")
@@ -158,10 +166,12 @@ def run_scene(
     crop = border_pixels(border, width, height)
 
     # (b) the truth, the subject in the full scene
-    truth = {}
+    truth, by_roughness = {}, {}
     for name, roughness, _ in MATERIALS:
-        build.set_roughness(material, roughness)
-        truth[name] = shot(f"truth {name}", border)[..., :3]
+        if roughness not in by_roughness:
+            build.set_roughness(material, roughness)
+            by_roughness[roughness] = shot(f"truth {name}", border)[..., :3]
+        truth[name] = by_roughness[roughness]
 
     # (c) the subject alone over the plate
     for obj in others:
@@ -175,11 +185,15 @@ def run_scene(
         MEAN: build.mean_world(plate8.reshape(-1, 3).mean(0)),
     }
     alone = {name: {} for name, _, _ in MATERIALS}
+    baselines = {}
     for name, roughness, _ in MATERIALS:
-        build.set_roughness(material, roughness)
-        for baseline, world in worlds.items():
-            scene.world = world
-            alone[name][baseline] = shot(f"{baseline} {name}", border)
+        if roughness not in baselines:
+            build.set_roughness(material, roughness)
+            baselines[roughness] = {}
+            for baseline, world in worlds.items():
+                scene.world = world
+                baselines[roughness][baseline] = shot(f"{baseline} {name}", border)
+        alone[name].update(baselines[roughness])
     scene.world = dome
     build.set_roughness(material, 0.0)
 
@@ -195,12 +209,20 @@ def run_scene(
         settings.method = ident
         settings.ground_object = others[0] if label == GROUND_CHOSEN else None
         times[label] = {}
-        for combine in ("REPLACE", "WORLD"):
+        # One Generate per look; in the Mix look one per roughness (the map is pre-filtered
+        # for the material's roughness, read at Generate).
+        runs = [("REPLACE", 0.0)]
+        runs += [("MIX", r) for r in dict.fromkeys(r for _, r, c in MATERIALS if c == "MIX")]
+        runs.append(("WORLD", None))
+        for combine, generate_roughness in runs:
             settings.combine = combine
+            settings.ior = MIX_IOR if combine == "MIX" else 1.45
+            settings.strength = MIX_STRENGTH if combine == "MIX" else 1.0
+            build.set_roughness(material, generate_roughness or 0.0)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             t0 = time.perf_counter()
             report = addon.generate.generate(scene, depsgraph, [subject])
-            times[label][combine] = time.perf_counter() - t0
+            times[label].setdefault(combine, time.perf_counter() - t0)  # the first (mirror)
             if report.warnings:
                 warnings.setdefault(label, []).extend(report.warnings)
             if not report.done:
@@ -208,7 +230,7 @@ def run_scene(
                     f"{spec.name}: Generate ({label}) made nothing: {report.warnings}"
                 )
             for name, roughness, mode in MATERIALS:
-                if mode != combine:
+                if mode != combine or generate_roughness not in (None, roughness):
                     continue
                 build.set_roughness(material, roughness)
                 alone[name][label] = shot(f"{ident} {name}", border)

@@ -37,6 +37,18 @@ class Neighbour:
 
 
 @dataclass
+class Companion:
+    """Another mirror object standing on the ground beside the subject (the inter-reflection
+    cases): its shape, largest dimension, base centre and turn about the vertical."""
+
+    shape: str
+    size: float
+    x: float
+    y: float
+    yaw_deg: float
+
+
+@dataclass
 class Scene3D:
     seed: int
     index: int
@@ -57,6 +69,8 @@ class Scene3D:
     # the failure cases only (defaults leave the ordinary scenes, and their JSON, unchanged)
     lift: float = 0.0  # the subject's lowest point above the ground (floating, or on a pedestal)
     case: str = ""  # the failure case's name
+    # the inter-reflection cases only: more mirror objects beside the subject
+    companions: list = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -74,7 +88,7 @@ class Scene3D:
 
     def to_json(self) -> dict:
         d = asdict(self)
-        for key in ("lift", "case"):  # absent from the ordinary scenes' records
+        for key in ("lift", "case", "companions"):  # absent from the ordinary scenes' records
             if not d[key]:
                 del d[key]
         d["name"] = self.name
@@ -303,3 +317,111 @@ def failure_set(quick: bool = False) -> list:
     if quick:
         cases = [c for c in cases if c.case in QUICK_FAILURES]
     return cases
+
+
+# --- inter-reflection cases (issue 11, item 4) ---------------------------------------------------
+
+QUICK_INTER = ("i1_two_spheres",)
+
+
+def _row(base: Scene3D, case, hdri, lens, depth, objects) -> Scene3D:
+    """Mirror objects in a row across the view, ``depth`` metres ahead of the camera, their
+    surfaces ``gap`` apart: ``objects`` is [(shape, size, gap before the next, yaw)], the first
+    the subject. The base scene gives the dome's turn, the ground, the wall behind the camera and
+    the box behind (moved behind the row); its box beside the subject is left out (the other
+    mirrors stand there). The camera looks at the row's middle."""
+    width = sum(size for _, size, _, _ in objects) + sum(gap for _, _, gap, _ in objects[:-1])
+    x = -width / 2
+    placed = []
+    for shape, size, gap, yaw in objects:
+        placed.append((shape, size, round(x + size / 2, 3), yaw))
+        x += size + gap
+    shape, size, sx, yaw = placed[0]
+    spec = replace(
+        base,
+        case=case,
+        hdri=hdri,
+        lens_mm=lens,
+        shape=shape,
+        size=size,
+        distance=round(math.hypot(sx, depth), 3),
+        azimuth_deg=round(math.degrees(math.atan2(sx, depth)), 2),
+        subject_yaw_deg=yaw,
+        neighbours=[],
+        companions=[Companion(s, z, cx, depth, w) for s, z, cx, w in placed[1:]],
+    )
+    bx, by = base.subject_xy
+    for n in base.neighbours:
+        if n.role == "behind camera":
+            spec.neighbours.append(n)
+        elif n.role == "behind":
+            y = n.y - by + depth + max(size for _, size, _, _ in objects) / 2
+            spec.neighbours.append(replace(n, x=round(n.x - bx, 3), y=round(y, 3)))
+    tallest = max(objects, key=lambda o: centre_height(o[0], o[1]))
+    drop = spec.camera_height - centre_height(tallest[0], tallest[1])
+    spec.pitch_deg = round(math.degrees(math.atan2(drop, depth)), 2)
+    return spec
+
+
+def mirrors(spec: Scene3D) -> list:
+    """[(shape, size, x, y, yaw)] of every mirror object: the subject first."""
+    return [(spec.shape, spec.size, *spec.subject_xy, spec.subject_yaw_deg)] + [
+        (c.shape, c.size, c.x, c.y, c.yaw_deg) for c in spec.companions
+    ]
+
+
+def inter_set(quick: bool = False) -> list:
+    """Two or three mirror objects side by side on the ground, a few tens of centimetres
+    apart (issue 11, item 4): each sees the others large. Four HDRIs, lenses 28-50 mm; the
+    rest (dome turn, ground, the walls) from ordinary scenes' seeds."""
+    cases = [
+        _row(
+            make_scene(101, 0),
+            "i1_two_spheres",
+            "city",
+            40.0,
+            5.5,
+            [("sphere", 0.8, 0.25, 0.0), ("sphere", 0.8, 0.0, 0.0)],
+        ),
+        _row(
+            make_scene(105, 4),
+            "i2_sphere_torus",
+            "sunrise",
+            50.0,
+            6.5,
+            [("sphere", 0.7, 0.2, 0.0), ("torus", 0.8, 0.0, 55.0)],
+        ),
+        _row(
+            make_scene(102, 1),
+            "i3_three",
+            "courtyard",
+            32.0,
+            4.5,
+            [("sphere", 0.6, 0.2, 0.0), ("suzanne", 0.6, 0.2, -20.0), ("torus", 0.7, 0.0, 40.0)],
+        ),
+        _row(
+            make_scene(106, 5),
+            "i4_big_small",
+            "sunset",
+            28.0,
+            4.0,
+            [("sphere", 1.0, 0.15, 0.0), ("sphere", 0.45, 0.0, 0.0)],
+        ),
+    ]
+    if quick:
+        cases = [c for c in cases if c.case in QUICK_INTER]
+    return cases
+
+
+def frame_reach(spec: Scene3D) -> float:
+    """max(|u| + ru, |v| + rv) over every mirror's bounding sphere (under 1: all inside the
+    frame)."""
+    half_w = SENSOR_MM / 2 / spec.lens_mm
+    half_h = half_w / ASPECT
+    reach = 0.0
+    for shape, size, x, y, _ in mirrors(spec):
+        centre = (x, y, spec.lift + centre_height(shape, size))
+        u, v, depth = _project(spec.camera_height, spec.pitch_deg, half_w, half_h, centre)
+        radius = size / 2 / depth
+        reach = max(reach, abs(u) + radius / half_w, abs(v) + radius / half_h)
+    return reach

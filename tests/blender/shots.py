@@ -125,3 +125,40 @@ def _plain(value):
         return tuple(_plain(v) for v in value)
     except TypeError:
         return repr(value)
+
+
+def camera_rays(scene, width, height):
+    """World-space rays through the pixel centres of a ``width`` x ``height`` render of the
+    scene's camera: ((3,) origin, (height, width, 3) directions), top row first."""
+    bounds = addon_part("operators.bounds")
+    projection = bounds.camera_projection(scene)
+    left, right, bottom, top = projection.frame
+    py, px = np.mgrid[0:height, 0:width] + 0.5
+    local = np.stack(
+        (
+            left + px * (right - left) / width,
+            top - py * (top - bottom) / height,
+            -np.ones_like(px),
+        ),
+        -1,
+    )
+    camera_to_world = np.linalg.inv(projection.world_to_camera)
+    return camera_to_world[:3, 3], local @ camera_to_world[:3, :3].T
+
+
+def ground_plate(scene, ground_z, colour, sky, size=None, name="Plate"):
+    """The plate the scene's camera would see of a ground plane at height ``ground_z``:
+    ``colour(x, y)`` ((..., 3) linear RGB at world X, Y) where a pixel's ray meets it, else
+    ``sky``; a packed float image of the render's size (or ``size`` (W, H))."""
+    w, h = size or (scene.render.resolution_x, scene.render.resolution_y)
+    origin, d = camera_rays(scene, w, h)
+    down = d[..., 2] < -1e-9
+    t = np.where(down, (ground_z - origin[2]) / np.where(down, d[..., 2], -1.0), 0.0)
+    x, y = origin[0] + t * d[..., 0], origin[1] + t * d[..., 1]
+    rgb = np.where(down[..., None], colour(x, y), sky).astype(np.float32)
+    image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb
+    image.pixels.foreach_set(rgba[::-1].ravel())
+    image.pack()
+    return image

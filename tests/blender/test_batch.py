@@ -50,11 +50,19 @@ def test_frames_write_composites_and_report(shot, tmp_path):
     progress = [line for line in r.stdout.splitlines() if line.startswith("frame ")]
     assert [p.split()[1] for p in progress] == ["1/3", "2/3", "3/3"]
     assert all(p.endswith(" s") for p in progress)
-    files = sorted(p.name for p in out.iterdir())
-    assert files == ["shot.0001.exr", "shot.0002.exr", "shot.0003.exr", "shot.report.json"]
+    files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    composites = [f"shot.{f:04d}.exr" for f in (1, 2, 3)]
+    elements = [f"shot_render.{f:04d}.exr" for f in (1, 2, 3)]
+    assert files == sorted([*composites, *elements, "shot.report.json"])
+    hidden = sorted(p.name for p in out.iterdir() if p.name.startswith("."))
+    assert hidden == [f".{c}.vr.json" for c in composites]  # what made each frame
     frames = [read(out / f"shot.{f:04d}.exr") for f in (1, 2, 3)]
     for frame, pixels in enumerate(frames, 1):
         assert pixels.shape == (32, 64, 4)
+        # The CG element: the render alone, transparent around the sphere.
+        element = read(out / f"shot_render.{frame:04d}.exr")
+        assert element.shape == (32, 64, 4) and element[0, 0, 3] == 0.0
+        assert on_sphere(element)[np.argmax(COLOURS[frame - 1])] > 0
         # Plate and sphere show that frame's colour: the sphere reflects that frame's plate.
         assert np.argmax(on_sphere(pixels)) == np.argmax(COLOURS[frame - 1])
     report = json.loads((out / "shot.report.json").read_text())
@@ -62,7 +70,8 @@ def test_frames_write_composites_and_report(shot, tmp_path):
     assert [e["frame"] for e in report["frames"]] == [1, 2, 3]
     first = report["frames"][0]
     assert first["status"] == "rendered" and first["plate"] == str(plates[0])
-    assert first["outputs"] == [str(out / "shot.0001.exr")] and first["passes"] == 1
+    assert first["outputs"] == [str(out / "shot.0001.exr"), str(out / "shot_render.0001.exr")]
+    assert first["passes"] == 1
     assert {"plate", "bounds", "table", "gather", "render", "write", "total"} <= set(first["times"])
     assert first["changes"]["maps_updated"] == ["VR Map Sphere"]
     # The sphere does not move: its table is built once, then reused for every later frame.
@@ -83,7 +92,7 @@ def test_killed_batch_resumes(shot, tmp_path):
     proc = subprocess.Popen(
         command(blend, *args, *slow, "--out", out), cwd=ROOT, stdout=subprocess.PIPE, text=True
     )
-    first = out / "shot.0001.exr"
+    first = out / ".shot.0001.exr.vr.json"  # a frame's last file: the record of what made it
     deadline = time.monotonic() + 120
     while not first.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)

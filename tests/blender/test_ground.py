@@ -13,13 +13,16 @@ import math
 import bpy
 import numpy as np
 import pytest
-from shots import addon_part
+from shots import addon_part, ground_plate
 
 W, H = 160, 90
 RED, BLUE, SKY = (0.9, 0.05, 0.05), (0.05, 0.05, 0.9), (0.1, 0.8, 0.1)
 
 
-def make_shot(method="GROUND", ground_object=False, red=lambda x, y: x > 0):
+def make_shot(method="GROUND", ground_object=False, red=lambda x, y: x > 0, combine="WORLD"):
+    """The shot; ``combine`` WORLD by default: the map seen from the object's centre holds the
+    ground (in the Replace, Modulate and Mix looks the material reads it per shading point:
+    tests/blender/test_ground_nodes.py)."""
     scene = bpy.context.scene
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
@@ -37,35 +40,15 @@ def make_shot(method="GROUND", ground_object=False, red=lambda x, y: x > 0):
         bpy.context.active_object.name = "Floor"
     settings = scene.virtual_reflections
     settings.method = method
+    settings.combine = combine
     settings.resolution = "512"
-    settings.plate_image = ground_plate(scene, -0.3 if ground_object else 0.0, red)
-    return scene, ball
-
-
-def ground_plate(scene, ground_z, red):
-    """The plate the camera would see: the ground at height ``ground_z`` red where
-    ``red(x, y)`` (world), else blue; the sky green."""
-    bounds = addon_part("operators.bounds")
-    projection = bounds.camera_projection(scene)
-    left, right, bottom, top = projection.frame
-    py, px = np.mgrid[0:H, 0:W] + 0.5
-    local = np.stack(
-        (left + px * (right - left) / W, top - py * (top - bottom) / H, -np.ones_like(px)), -1
+    settings.plate_image = ground_plate(
+        scene,
+        -0.3 if ground_object else 0.0,
+        lambda x, y: np.where(red(x, y)[..., None], RED, BLUE),
+        SKY,
     )
-    camera_to_world = np.linalg.inv(projection.world_to_camera)
-    d = local @ camera_to_world[:3, :3].T
-    origin = camera_to_world[:3, 3]
-    down = d[..., 2] < -1e-9
-    t = np.where(down, (ground_z - origin[2]) / np.where(down, d[..., 2], -1.0), 0.0)
-    x, y = origin[0] + t * d[..., 0], origin[1] + t * d[..., 1]
-    rgb = np.where(red(x, y)[..., None], RED, BLUE)
-    rgb = np.where(down[..., None], rgb, SKY).astype(np.float32)
-    image = bpy.data.images.new("Plate", W, H, alpha=False, float_buffer=True)
-    rgba = np.ones((H, W, 4), np.float32)
-    rgba[..., :3] = rgb
-    image.pixels.foreach_set(rgba[::-1].ravel())
-    image.pack()
-    return image
+    return scene, ball
 
 
 def map_colour(image, direction):
@@ -93,7 +76,7 @@ def generate(scene, ball):
         scene, bpy.context.evaluated_depsgraph_get(), [ball]
     )
     assert report.done == ["Ball"], report.warnings
-    return bpy.data.images["VR Map Ball"]
+    return addon_part("operators.shading").map_of(ball)
 
 
 POINTS = [((1.2, 1.5, 0.0), RED), ((-1.2, 1.5, 0.0), BLUE), ((1.0, -1.0, 0.0), RED),

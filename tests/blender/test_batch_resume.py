@@ -1,0 +1,90 @@
+"""Resume never ships a stale frame (issue 12): each frame keeps a record of what made it; a
+run with other inputs renders complete frames again and says why, the same inputs skip."""
+
+import json
+import pathlib
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+from sequence_shots import COLOURS, build_scene, read, write_plates
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture
+def shot(clean_file, tmp_path):
+    """shot.blend and two plate sequences: a/ in COLOURS, b/ in the reverse order."""
+    a = write_plates(tmp_path / "a")
+    b = write_plates(tmp_path / "b", colours=COLOURS[::-1])
+    build_scene()
+    path = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path, str(a[0]).replace("0001", "####"), str(b[0]).replace("0001", "####")
+
+
+def run(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "render_shot", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def sphere_colour(path):
+    pixels = read(path)
+    h, w = pixels.shape[:2]
+    return int(np.argmax(pixels[h // 3 : 2 * h // 3, w // 3 : 2 * w // 3, :3].mean((0, 1))))
+
+
+def statuses(out):
+    report = json.loads((out / "shot.report.json").read_text())
+    return [(e["status"], e.get("rendered_again")) for e in report["frames"]]
+
+
+def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
+    blend, plate_a, plate_b = shot
+    out = tmp_path / "out"
+    common = [blend, "--out", out, "--frames", "1-2", "--resolution", 256]
+    first = run(*common, "--plate", plate_a)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert sphere_colour(out / "shot.0001.exr") == 0  # red: plate a's frame 1
+
+    # The same inputs: both frames skipped.
+    same = run(*common, "--plate", plate_a)
+    assert same.returncode == 0, same.stderr[-2000:]
+    assert statuses(out) == [("skipped", None), ("skipped", None)]
+
+    # Another plate: rendered again, the report and the log say why; the frames are b's.
+    other = run(*common, "--plate", plate_b)
+    assert other.returncode == 0, other.stderr[-2000:]
+    assert statuses(out) == [("rendered", "made with another plate")] * 2
+    assert "[1] rendered again: made with another plate" in other.stdout
+    assert sphere_colour(out / "shot.0001.exr") == 2  # blue: plate b's frame 1
+
+    # Another combine (and passes): rendered again, naming what changed.
+    mixed = run(*common, "--plate", plate_b, "--combine", "MIX")
+    assert mixed.returncode == 0, mixed.stderr[-2000:]
+    assert statuses(out) == [("rendered", "made with another reflections")] * 2
+    report = json.loads((out / "shot.report.json").read_text())
+    record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
+    assert record["inputs"]["reflections"]["combine"] == "MIX"
+    assert record["fingerprint"] == report["frames"][0]["fingerprint"]
+
+    # The plate file changed in place (same name, new pixels): rendered again.
+    plate_file = pathlib.Path(plate_b.replace("####", "0002"))
+    plate_file.write_bytes(pathlib.Path(plate_a.replace("####", "0002")).read_bytes())
+    touched = run(*common, "--plate", plate_b, "--combine", "MIX")
+    assert touched.returncode == 0, touched.stderr[-2000:]
+    assert statuses(out) == [("skipped", None), ("rendered", "made with another plate")]
+
+    # Frames without a record (an older version's output) are rendered again, never skipped.
+    (out / ".shot.0001.exr.vr.json").unlink()
+    older = run(*common, "--plate", plate_b, "--combine", "MIX")
+    assert older.returncode == 0, older.stderr[-2000:]
+    assert statuses(out) == [("rendered", "no record of what made it"), ("skipped", None)]
+    assert not [p for p in out.iterdir() if ".tmp" in p.name]

@@ -1,0 +1,216 @@
+"""Camera View + Ground in the Replace look: the material reads the ground per shading point.
+
+A mirror ball (radius 0.5, smooth) stands on the ground Z = 0, 5 m in front of the camera.
+The plate is made analytically for the Blender camera: the ground a checker of 0.5 m squares,
+red and blue, the sky green. Rendered in Cycles, each of the ball's pixels must show the
+colour of the ground point its own reflected ray meets (traced here analytically from the
+sphere) — also where the ray from the ball's CENTRE in the same direction meets a square of
+the other colour, which is what a map seen from the centre shows (parallax near the contact).
+"""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from shots import addon_part, camera_rays, ground_plate
+
+W, H = 240, 135
+RED, BLUE, SKY = np.array((0.9, 0.05, 0.05)), np.array((0.05, 0.05, 0.9)), (0.1, 0.8, 0.1)
+CENTRE, RADIUS, SQUARE = np.array((0.0, 0.0, 0.5)), 0.5, 0.5
+
+
+def red_at(x, y):
+    return (np.floor(x / SQUARE) + np.floor(y / SQUARE)) % 2 == 0
+
+
+def make_shot(combine="REPLACE", method="GROUND"):
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
+    )
+    return make_shot_on(bpy.context.scene, bpy.context.active_object, combine, method)
+
+
+def make_shot_on(scene, ball, combine="REPLACE", method="GROUND"):
+    """Camera, plate and Generate for ``ball`` (a sphere at CENTRE)."""
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.3, -4.0, 1.6)
+    cam.rotation_euler = (math.radians(90 - 14), 0.0, 0.0)
+    cam.data.lens = 35.0
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    ball.name = "Ball"
+    bpy.context.view_layer.objects.active = ball
+    bpy.ops.object.shade_smooth()
+    settings = scene.virtual_reflections
+    settings.method = method
+    settings.combine = combine
+    settings.resolution = "512"
+    colour = lambda x, y: np.where(red_at(x, y)[..., None], RED, BLUE)  # noqa: E731
+    settings.plate_image = ground_plate(scene, 0.0, colour, SKY)
+    report = addon_part("operators.generate").generate(
+        scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
+    assert report.done == ["Ball"], report.warnings
+    return scene, ball, report
+
+
+def render(scene, tmp_path):
+    """(H, W, 4) float32 linear RGBA, top row first: Cycles, the film transparent."""
+    r = scene.render
+    r.engine = "CYCLES"
+    r.film_transparent = True
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = 16
+    scene.cycles.use_denoising = False
+    scene.view_settings.view_transform = "Standard"
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    path = tmp_path / "ball.exr"
+    r.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path))
+    pixels = np.empty(W * H * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    return pixels.reshape(H, W, 4)[::-1]
+
+
+def traced(scene):
+    """Per pixel: (hit the ball, the ground point of the reflected ray from the surface, the
+    ground point of the same direction from the ball's centre, the ray goes down)."""
+    origin, d = camera_rays(scene, W, H)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    oc = origin - CENTRE
+    b = d @ oc
+    disc = b * b - (oc @ oc - RADIUS**2)
+    hit = disc > 0
+    t = -b - np.sqrt(np.where(hit, disc, 0.0))
+    p = origin + t[..., None] * d
+    n = (p - CENTRE) / RADIUS
+    r = d - 2.0 * (d * n).sum(-1, keepdims=True) * n
+    down = r[..., 2] < -1e-3
+    safe = np.where(down, r[..., 2], -1.0)
+    surface = p + (-p[..., 2] / safe)[..., None] * r
+    centre = CENTRE + (-CENTRE[2] / safe)[..., None] * r
+    return hit, surface, centre, down
+
+
+def confident(points):
+    """Ground points at least 3 cm from a checker edge (their colour is unambiguous)."""
+    frac = np.mod(points[..., :2], SQUARE)
+    return (np.minimum(frac, SQUARE - frac) > 0.03).all(-1)
+
+
+def test_each_point_of_a_mirror_reflects_its_own_ground_point(addon, tmp_path):
+    scene, _, _ = make_shot()
+    rgba = render(scene, tmp_path)
+    hit, surface, centre, down = traced(scene)
+    # Well inside the ball's silhouette (no edge pixels), reflecting the ground nearby (on
+    # the plate: within 3 m of the ball), unambiguous colour.
+    inside = rgba[..., 3] > 0.999
+    near = np.linalg.norm(surface[..., :2], axis=-1) < 3.0
+    chosen = hit & inside & down & near & confident(surface)
+    assert chosen.sum() > 150, chosen.sum()
+    red_seen = rgba[..., 0] > rgba[..., 2]
+    expected = red_at(surface[..., 0], surface[..., 1])
+    agree = (red_seen == expected)[chosen].mean()
+    assert agree > 0.9, agree
+    # Where the object's centre would see the other colour, the render follows the surface.
+    parallax = chosen & confident(centre) & (red_at(centre[..., 0], centre[..., 1]) != expected)
+    assert parallax.sum() > 30, parallax.sum()
+    assert (red_seen == expected)[parallax].mean() > 0.8
+
+
+def test_the_map_seen_from_the_centre_gets_the_contact_wrong(addon, tmp_path):
+    """The World look (the map alone, seen from the centre) on the same pixels: where the
+    centre sees the other colour, a mirror lit by that map shows it, so the test above can
+    fail without the per-point lookup."""
+    scene, ball, _ = make_shot(combine="WORLD")
+    mirror = bpy.data.materials.new("Mirror")
+    if bpy.app.version < (5, 0, 0):
+        mirror.use_nodes = True
+    bsdf = mirror.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.0
+    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    ball.data.materials.append(mirror)
+    rgba = render(scene, tmp_path)
+    hit, surface, centre, down = traced(scene)
+    inside = rgba[..., 3] > 0.999
+    near = np.linalg.norm(surface[..., :2], axis=-1) < 3.0
+    chosen = hit & inside & down & near & confident(surface) & confident(centre)
+    expected = red_at(surface[..., 0], surface[..., 1])
+    parallax = chosen & (red_at(centre[..., 0], centre[..., 1]) != expected)
+    red_seen = rgba[..., 0] > rgba[..., 2]
+    assert parallax.sum() > 30, parallax.sum()
+    assert (red_seen == expected)[parallax].mean() < 0.5
+
+
+def test_the_replace_map_is_the_same_for_every_pose(addon):
+    """In the Replace look the map holds no ground (the material reads it): its Params, the
+    lookup table's key, do not change when the ball moves; in the World look they do."""
+    scene, ball, _ = make_shot()
+    pipeline = addon_part("operators.pipeline")
+    plate = addon_part("operators.plate")
+
+    def params():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        view = pipeline.view(scene, plate.pixels(scene)[0].shape, depsgraph)
+        return pipeline.map_params(view, scene, depsgraph, [ball])
+
+    for combine, moves in (("REPLACE", False), ("WORLD", True)):
+        scene.virtual_reflections.combine = combine
+        ball.location.x = 0.0
+        bpy.context.view_layer.update()
+        before = params()
+        ball.location.x = 0.4
+        bpy.context.view_layer.update()
+        assert (params() != before) == moves, combine
+        assert before.up is not None  # the world's horizon in both
+
+
+def test_removing_takes_the_ground_group_away(addon):
+    make_shot()
+    assert any(g.name.startswith("VR Ground") for g in bpy.data.node_groups)
+    addon_part("operators.generate").remove_all()
+    created = addon_part("operators.images").CREATED
+    assert not [g.name for g in bpy.data.node_groups if g.get(created)]
+
+
+def test_a_rough_surface_gets_a_blurred_map_with_the_ground_in_it(addon):
+    """The Mix look (Glossy) on a rough material (0.35): the map is pre-filtered (smoother
+    than the mirror's) and holds the ground seen from the centre, and no sharp per-point
+    lookup is wired; a mirror material gets the per-point lookup."""
+    shading = addon_part("operators.shading")
+    maps = {}
+    for roughness in (0.0, 0.35):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = bpy.context.scene
+        mat = bpy.data.materials.new("Metal")
+        if bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True
+        mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=RADIUS, location=tuple(CENTRE))
+        bpy.context.active_object.data.materials.append(mat)
+        scene, ball, _ = make_shot_on(scene, bpy.context.active_object, combine="MIX")
+        assert shading.roughness(ball) == pytest.approx(roughness)
+        image = shading.map_of(ball)
+        maps[roughness] = addon_part("operators.images").read_pixels(image)[..., :3].copy()
+        grounds = [
+            n for m in ball.material_slots for g in bpy.data.node_groups
+            if g.get("vr_mode") == "MIX" for n in g.nodes if n.name == "VR Ground"
+        ]  # fmt: skip
+        assert bool(grounds) == (roughness == 0.0)
+    # Neighbouring texels differ less in the pre-filtered map.
+    sharp, rough = (np.abs(np.diff(maps[r], axis=1)).mean() for r in (0.0, 0.35))
+    assert rough < 0.5 * sharp, (rough, sharp)
+    # The ground seen from the centre is in the rough map: below the ball toward the camera
+    # (between ball and camera, where Camera View alone has only a fill) the checker shows:
+    # red and blue both present in the lower half.
+    lower = maps[0.35][maps[0.35].shape[0] * 5 // 8 :]
+    assert (lower[..., 0] > lower[..., 2] + 0.1).any() and (
+        lower[..., 2] > lower[..., 0] + 0.1
+    ).any()

@@ -1,0 +1,118 @@
+"""Saved and packed maps are pipeline files: the engine's scene-linear half-float EXR, ZIP
+compressed, tagged scene-linear Rec.709, with the standard envmap attribute (issue 12)."""
+
+import bpy
+import numpy as np
+import OpenEXR
+import OpenImageIO as oiio
+import pytest
+from shots import add_camera, addon_part, ramp_plate
+
+maps = addon_part("operators.maps")
+images = addon_part("operators.images")
+
+
+def smooth_map(width=256):
+    """A lat-long map with values above 1 (an HDR sky) and a gradient: (H, W, 3) float32."""
+    h = width // 2
+    y, x = np.mgrid[0:h, 0:width].astype(np.float32)
+    env = np.stack([x / width * 8.0, y / h, np.full_like(x, 0.25)], axis=-1)
+    return env.astype(np.float32)
+
+
+def read_back(path):
+    """(pixels (H, W, C) float32, the OIIO spec) of an image file."""
+    image = oiio.ImageInput.open(str(path))
+    assert image is not None, oiio.geterror()
+    try:
+        spec = image.spec()
+        pixels = image.read_image(0, 0, 0, spec.nchannels, "float")
+    finally:
+        image.close()
+    return np.asarray(pixels).reshape(spec.height, spec.width, -1), spec
+
+
+def assert_pipeline_map(path, env):
+    """``path`` holds ``env`` as a scene-linear half-float compressed lat-long EXR."""
+    pixels, spec = read_back(path)
+    assert pixels.shape == env.shape
+    np.testing.assert_allclose(pixels, env, rtol=2e-3, atol=1e-3)  # half precision
+    assert str(spec.format) == "half"
+    assert spec.getattribute("compression") in ("zip", "dwaa")
+    assert spec.getattribute("textureformat") == "LatLong Environment"
+    assert str(spec.getattribute("oiio:ColorSpace")).startswith("lin_rec709")  # 3.0 / 3.1+ name
+    header = OpenEXR.File(str(path), header_only=True).header()
+    assert header["envmap"] == OpenEXR.ENVMAP_LATLONG
+    np.testing.assert_allclose(header["chromaticities"][:2], (0.64, 0.33), atol=1e-6)
+    # Half floats and ZIP: well under the 12 bytes a pixel of uncompressed float32 RGB.
+    h, w = env.shape[:2]
+    assert path.stat().st_size < w * h * 12 / 3
+
+
+def test_a_saved_map_is_a_half_float_latlong_exr(addon, tmp_path):
+    env = smooth_map()
+    image = maps.store_map("VR Map Probe", env, str(tmp_path))
+    path = tmp_path / "VR_Map_Probe.exr"
+    assert_pipeline_map(path, env)
+    # The image reads that file: what Blender shows is what was saved.
+    assert image.source == "FILE" and bpy.path.abspath(image.filepath) == str(path)
+    assert image.colorspace_settings.name in images.LINEAR_SPACES and not image.is_dirty
+    pixels, _ = read_back(path)
+    np.testing.assert_array_equal(images.read_pixels(image)[..., :3], pixels)
+    # Stored again (a regeneration): the same file, replaced whole, the same image.
+    env2 = env * 0.5
+    assert maps.store_map("VR Map Probe", env2, str(tmp_path)) == image
+    assert_pipeline_map(path, env2)
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env2, rtol=2e-3, atol=1e-3)
+
+
+@pytest.mark.parametrize("storage", ["FILES", "PACK"])
+def test_generate_keeps_pipeline_maps(addon, tmp_path, storage):
+    scene = bpy.context.scene
+    add_camera(scene, size=(64, 48))
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
+    ball = bpy.context.active_object
+    ball.name = "Ball"
+    scene.virtual_reflections.plate_image = ramp_plate()
+    scene.virtual_reflections.resolution = "256"
+    scene.virtual_reflections.map_storage = storage
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))  # FILES: the maps go beside it
+    bpy.ops.object.select_all(action="DESELECT")
+    ball.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}, scene.virtual_reflections.last_report
+    image = bpy.data.images["VR Map Ball"]
+    env = images.read_pixels(image)[..., :3].copy()
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    if storage == "FILES":
+        path = tmp_path / "vr_maps" / "VR_Map_Ball.exr"
+        assert image.packed_file is None
+    else:
+        assert image.packed_file is not None
+        path = tmp_path / "packed.exr"
+        path.write_bytes(image.packed_file.data)
+    assert_pipeline_map(path, env)
+    # The .blend opens with the same map (from the file or the packed EXR).
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    image = bpy.data.images["VR Map Ball"]
+    assert image.source == "FILE" and image.is_float
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=2e-3, atol=1e-3)
+
+
+def test_packing_without_openimageio_still_keeps_the_map(addon, tmp_path, monkeypatch):
+    """No OpenImageIO in this Blender: the map is packed Blender's way, never lost on save."""
+    env = smooth_map(64)
+    maps.store_map("VR Map Fallback", env)
+    imagefiles = addon_part("virtual_reflections.imagefiles")
+
+    def missing():
+        raise imagefiles.ImageError("OpenImageIO is not installed (pip install OpenImageIO)")
+
+    monkeypatch.setattr(imagefiles, "_oiio", missing)
+    blend = tmp_path / "fallback.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    monkeypatch.undo()
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    image = bpy.data.images["VR Map Fallback"]
+    assert image.packed_file is not None
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=1e-3, atol=1e-3)
