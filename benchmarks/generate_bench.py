@@ -4,8 +4,8 @@ One object of ~100k vertices standing on the ground 8 m in front of a camera at 
 1920x1080 plate, a 1024x512 map (or --plate 4k: a 3840x2160 plate; --resolution AUTO: the
 map width the add-on picks for the object's size on screen, 4096 for this one on a 4K plate).
 Per method (each --method given, in the same run) prints medians per stage for the first
-generation of a pose (the object moved: its table is built; Camera View shares one table
-per camera, Camera View + Ground adds the ground per position) and for a regeneration of an
+generation with a new lens (a new camera: every table built), of a moved object (the paper's
+method builds its table; Camera View's is the camera's) and for a regeneration of an
 unchanged pose (the cached table: only the gather), the end-to-end time of the operator
 call, and each method's moved-pose time against the first method's.
 
@@ -65,12 +65,28 @@ def scene_with_object(width=1920, height=1080, resolution="1024"):
     return scene, obj
 
 
+CASES = {
+    "lens": "new lens (every table built)",
+    "moved": "object moved",
+    "same": "unchanged (cached)",
+}
+
+
 def measure(generate, obj, repeat, method):
-    """Print the stage medians of ``method``; returns the moved pose's median seconds."""
-    rows = {"moved": [], "same": []}
-    ends = {"moved": [], "same": []}
+    """Print the stage medians of ``method``; returns the moved pose's median seconds.
+
+    Cases: a new focal length (a new camera: every table is built, Camera View's too), the
+    object moved (the paper's method builds a new table; Camera View's is the camera's), and
+    an unchanged pose (the cached table)."""
+    rows = {case: [] for case in CASES}
+    ends = {case: [] for case in CASES}
+    camera = bpy.context.scene.camera.data
+    lens = camera.lens
     for i in range(repeat):
-        for case in ("moved", "same"):
+        for case in CASES:
+            if case == "lens":
+                camera.lens = lens + 0.05 * (i + 1)
+                bpy.context.view_layer.update()
             if case == "moved":
                 obj.location.x = 0.01 * (i + 1) + (0.5 if method == "ground" else 0.0)
                 bpy.context.view_layer.update()
@@ -80,11 +96,12 @@ def measure(generate, obj, repeat, method):
             )
             ends[case].append(time.perf_counter() - t)
             rows[case].append(report.timings)
+    camera.lens = lens
     print(f"{method}:")
-    for case, label in (("moved", "object moved (table built)"), ("same", "unchanged (cached)")):
+    for case, label in CASES.items():
         stages = rows[case][0].keys()
         parts = ", ".join(
-            f"{s} {1000 * statistics.median(r[s] for r in rows[case]):.1f}" for s in stages
+            f"{s} {1000 * statistics.median(r.get(s, 0.0) for r in rows[case]):.1f}" for s in stages
         )
         print(
             f"  {label:28s}: median {1000 * statistics.median(ends[case]):6.1f} ms end to end"
