@@ -200,7 +200,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     angle = np.empty(count, np.float32)
     inside = np.empty(count, bool) if latlong else None
 
-    if layout == "latlong":  # row by row, the trigonometry per row and column
+    if latlong:  # row by row, the trigonometry per row and column
 
         def project(a, b):
             rows = slice(a, b)
@@ -308,7 +308,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     groups = []
     fill_texels = None
     if filled:
-        if layout == "latlong":  # compact: 2 bytes a texel, read per frame by fill_values
+        if latlong:  # compact: 2 bytes a texel, read per frame by fill_values
             if params.up is None:  # a texel's elevation is its row's: one step per row
                 fill_steps = camera_view.fill_bins_latlong(size)
                 near_steps = fill_steps[near // size]
