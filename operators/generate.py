@@ -87,9 +87,11 @@ def steps(scene, depsgraph, objects, pixels=None):
     report = pipeline.Report()
     image = plate.require_plate(scene)
     yield Step("Reading the plate", 0.0)
+    pyramids = {}  # the plate's pyramids, shared by every object's map
     with report.timed("plate"):
         if pixels is None:
-            pixels, report.plate = plate.pixels(scene, image)
+            found = plate.frame(scene, image=image)
+            pixels, report.plate, pyramids = found.pixels, found.info, found.pyramids
         else:
             report.plate = (
                 f"{pixels.shape[1]}x{pixels.shape[0]} pixels given for plate '{image.name}'"
@@ -128,7 +130,7 @@ def steps(scene, depsgraph, objects, pixels=None):
                 yield Step(
                     f"Gathering ({name})",
                     share + 0.6 * 0.85 / len(jobs),
-                    functools.partial(pipeline.gather, table, pixels, report, rough),
+                    functools.partial(pipeline.gather, table, pixels, report, rough, pyramids),
                 )
             )
         )

@@ -275,12 +275,12 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
     return boxes, extents, problems
 
 
-def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0):
+def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0, pyramids=None):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
     -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable): `map_table`
     then `gather`."""
     table = map_table(pixels.shape, box, map_params, width, report, name)
-    return gather(table, pixels, report, roughness), table
+    return gather(table, pixels, report, roughness, pyramids), table
 
 
 def map_table(plate_shape, box, map_params, width, report, name=None):
@@ -299,11 +299,13 @@ def map_table(plate_shape, box, map_params, width, report, name=None):
     return table
 
 
-def gather(table, pixels, report, roughness=0.0):
+def gather(table, pixels, report, roughness=0.0, pyramids=None):
     """(width / 2, width, 3) float32 map: one gather of ``pixels`` through ``table``, and a
-    ``roughness`` over prefilter.SHARP pre-filters it for that (`map_roughness`). No bpy."""
+    ``roughness`` over prefilter.SHARP pre-filters it for that (`map_roughness`).
+    ``pyramids``: the plate's pyramids (a dict kept with the plate,
+    `plate.PlateFrame.pyramids`), shared by every map of these pixels. No bpy."""
     with report.timed("gather"):
-        env = apply_table(table, pixels)
+        env = apply_table(table, pixels, pyramids)
     if roughness > 0:
         with report.timed("prefilter"):
             env = prefilter_latlong(env, roughness)

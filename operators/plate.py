@@ -26,7 +26,7 @@ import contextlib
 import os
 import re
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -285,6 +285,9 @@ class PlateFrame:
     info: str
     file: str
     identity: tuple
+    # The mip pyramids of these pixels (envmap.apply_table), kept as long as the pixels are:
+    # every map of this plate frame shares them.
+    pyramids: dict = field(default_factory=dict, compare=False)
 
 
 def frame(scene, number=None, image=None) -> PlateFrame:
@@ -314,8 +317,8 @@ def frame(scene, number=None, image=None) -> PlateFrame:
     hit = _still.get(key)
     if hit is None:
         _still.clear()
-        hit = _still[key] = image_pixels(image)
-    return PlateFrame(hit[0], hit[1], disk_path(image) or image.name, key)
+        hit = _still[key] = (*image_pixels(image), {})
+    return PlateFrame(hit[0], hit[1], disk_path(image) or image.name, key, hit[2])
 
 
 def pixels(scene, image=None, number=None) -> tuple[np.ndarray, str]:

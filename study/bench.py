@@ -1,35 +1,64 @@
-"""`python -m study bench`: median timings and a peer measured in the same run.
+"""`python -m study bench`: the engine's speed and memory, with a peer measured in the same run.
 
-Figures: building the lookup table and applying it, for a 1920x1080 plate to a 1024x512
-lat-long and to 6 x 512^2 cube faces; the peer is py360convert's `c2e` turning the same
-plate's cube faces into a 1024x512 lat-long (warm: its sampler cache filled by a first
-call). The machine is shared and noisy, so the figure that matters is the ratio of our
-apply to the peer's c2e, measured in the same run with interleaved repetitions.
+Per frame (the table cached): applying the table to a 1920x1080 plate for both methods
+(Paper, Camera View) at 1024 and 2048 wide lat-longs, against py360convert's `c2e` making the
+same lat-long from cube faces with the fastest back end it finds (OpenCV's `remap` when
+installed, else SciPy's `map_coordinates`; the line says which), and beside them the bandwidth
+floor: one copy of the plate. Repetitions are interleaved, so all see the same machine load;
+the ratio ours / peer is what we hold ourselves to.
+
+Cold tables (new bounds or camera): building the table from a 3840x2160 plate for 2048 and
+4096 wide lat-longs, its time, its bytes per texel and the peak memory while building
+(tracemalloc, which NumPy reports to; measured in a separate run from the time).
+
+`run_sweep` charts time and memory (the cached table's bytes and the plate's mip pyramid,
+kept with the plate) against map width (256 .. 4096) and plate size (1080p, 4K, 8K), ours
+against the peer.
 """
 
 from __future__ import annotations
 
+import gc
 import os
 import platform
 import time
+import tracemalloc
 
 import numpy as np
 
+from virtual_reflections.cache import nbytes
 from virtual_reflections.envmap import apply_table
+from virtual_reflections.mipmap import pyramid_size
 from virtual_reflections.params import Params
 from virtual_reflections.segmentation import segment
 from virtual_reflections.table import build_table
 
 PLATE_W, PLATE_H = 1920, 1080
-BBOX = (760.0, 400.0, 1160.0, 760.0)
+BBOX = (760.0, 400.0, 1160.0, 760.0)  # on the 1080p plate; scaled with the plate
+HFOV = 50.0
+METHODS = {"paper": Params(), "camera": Params(method="camera", hfov=HFOV)}
+PLATES = {"1080p": (1920, 1080), "4K": (3840, 2160), "8K": (7680, 4320)}
 
 
-def _plate() -> np.ndarray:
-    """A deterministic 1920x1080 scene-linear test plate with detail at every scale."""
+def _plate(width: int = PLATE_W, height: int = PLATE_H) -> np.ndarray:
+    """A deterministic scene-linear test plate (H, W, 3) float32 with detail at every scale."""
     rng = np.random.default_rng(2004)
-    y, x = np.mgrid[0:PLATE_H, 0:PLATE_W].astype(np.float32)
-    base = np.stack([x / PLATE_W, y / PLATE_H, 0.5 + 0.5 * np.sin(x / 37.0) * np.cos(y / 23.0)], -1)
-    return (base + 0.1 * rng.random((PLATE_H, PLATE_W, 3), dtype=np.float32)).astype(np.float32)
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    base = np.stack(
+        [x / width, y / height, 0.5 + 0.5 * np.sin(x / 37.0) * np.cos(y / 23.0)], -1
+    ).astype(np.float32)
+    base += 0.1 * rng.random((height, width, 3), dtype=np.float32)
+    return base
+
+
+def _bbox(width: int) -> tuple:
+    s = width / PLATE_W
+    return tuple(v * s for v in BBOX)
+
+
+def _table(method: str, width: int, height: int, size: int):
+    params = METHODS[method]
+    return build_table(segment(width, height, _bbox(width), params), "latlong", size, params)
 
 
 def median_ms(fn, repeat: int = 3) -> float:
@@ -42,111 +71,194 @@ def median_ms(fn, repeat: int = 3) -> float:
     return 1000.0 * float(np.median(times))
 
 
+def peak_mb(fn) -> float:
+    """The peak memory (MB, tracemalloc: NumPy's arrays included) that `fn` allocates."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
+
+
 def _peer():
+    """(py360convert or None, a line naming it and its back end)."""
     try:
         import py360convert
         from py360convert import utils
     except ImportError:
         return None, "py360convert not installed (pip install py360convert)"
-    backend = "cv2.remap" if getattr(utils, "cv2", None) is not None else "scipy map_coordinates"
-    return py360convert, f"py360convert {getattr(py360convert, '__version__', '')} ({backend})"
+    backend = (
+        "OpenCV remap"
+        if getattr(utils, "cv2", None) is not None
+        else "SciPy map_coordinates (install opencv-python-headless for its fast back end)"
+    )
+    return py360convert, f"py360convert {getattr(py360convert, '__version__', '')} c2e, {backend}"
 
 
-def run_sweep(path: str, repeat: int = 7) -> dict:
-    """Apply time against map size, ours and the peer's, in one run; charted into `path`."""
+def _peer_call(p360, plate: np.ndarray, size: int):
+    """A warm call of the peer making a size x size/2 lat-long from 6 faces of size/4
+    (cut from the plate: their content does not change the cost)."""
+    face = size // 4
+    faces = [np.ascontiguousarray(plate[:face, :face])] * 6
+    p360.c2e(faces, size // 2, size, cube_format="list")  # fills its cached sampler
+    return lambda: p360.c2e(faces, size // 2, size, cube_format="list")
+
+
+def _machine() -> str:
+    return (
+        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, NumPy {np.__version__}"
+    )
+
+
+def run_bench(repeat: int = 15) -> dict:
+    """Print and return the figures (ms, MB; medians over `repeat` interleaved runs)."""
+    print(_machine())
+    p360, peer_name = _peer()
+    print(f"peer: {peer_name}")
+    figures = {}
+    plate = _plate()
+    print(f"\nper frame (table cached): {PLATE_W}x{PLATE_H} plate, medians of {repeat}")
+    for size in (1024, 2048):
+        tables = {m: _table(m, PLATE_W, PLATE_H, size) for m in METHODS}
+        calls = {f"ours {m}": (lambda t=t: apply_table(t, plate)) for m, t in tables.items()}
+        if p360 is not None:
+            calls["peer"] = _peer_call(p360, plate, size)
+        calls["plate copy"] = plate.copy
+        times = {k: [] for k in calls}
+        for _ in range(repeat):  # interleaved: every call sees the same load
+            for k, fn in calls.items():
+                t = time.perf_counter()
+                fn()
+                times[k].append(time.perf_counter() - t)
+        ms = {k: 1000.0 * float(np.median(v)) for k, v in times.items()}
+        line = ", ".join(f"{k} {v:.1f} ms" for k, v in ms.items())
+        print(f"  {size}x{size // 2}: {line}")
+        for m in METHODS:
+            figures[f"apply {m} {size}"] = ms[f"ours {m}"]
+            if "peer" in ms:
+                figures[f"ratio {m} {size}"] = ms[f"ours {m}"] / ms["peer"]
+                print(f"    ratio {m} / peer: {figures[f'ratio {m} {size}']:.2f} (target <= 1.0)")
+        figures[f"peer {size}"] = ms.get("peer")
+        figures[f"copy {size}"] = ms["plate copy"]
+    width, height = PLATES["4K"]
+    print(f"\ncold table (new bounds or camera): {width}x{height} plate")
+    for size in (2048, 4096):
+        for m in METHODS:
+            runs = max(1, repeat // (5 if size <= 2048 else 15))
+            table = _table(m, width, height, size)
+            per_texel = nbytes(table) / (size * size // 2)
+            del table
+            gc.collect()
+            cold = median_ms(lambda m=m, s=size: _table(m, width, height, s), runs)
+            peak = peak_mb(lambda m=m, s=size: _table(m, width, height, s))
+            figures[f"cold {m} {size}"] = cold
+            figures[f"peak {m} {size}"] = peak
+            figures[f"bytes {m} {size}"] = per_texel
+            target = 300 if size <= 2048 else 1000
+            print(
+                f"  {m:6s} {size}x{size // 2}: {cold:7.0f} ms (target <= {target}), "
+                f"peak {peak:6.0f} MB, table {per_texel:5.1f} bytes/texel (target <= 16)"
+            )
+    return figures
+
+
+def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), plates=None):
+    """Time and memory against map width and plate size, ours and the peer's, charted into
+    `path` (PNG): per frame (apply) and cold table time, and the table's bytes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    plate = _plate()
-    seg = segment(PLATE_W, PLATE_H, BBOX, Params())
+    plates = plates or list(PLATES)
     p360, peer_name = _peer()
-    widths = (256, 512, 1024, 2048)
-    rows = {"build": [], "apply": [], "peer": []}
-    for width in widths:
-        face = width // 4
-        cube = apply_table(build_table(seg, "cube", face), plate)
-        faces = [cube[i * face : (i + 1) * face] for i in range(6)]
-        table = build_table(seg, "latlong", width)
-        rows["build"].append(median_ms(lambda t=width: build_table(seg, "latlong", t), 3))
-        rows["apply"].append(median_ms(lambda t=table: apply_table(t, plate), repeat))
-        if p360 is not None:
-            p360.c2e(faces, width // 2, width, cube_format="list")
-            rows["peer"].append(
-                median_ms(
-                    lambda f=faces, w=width: p360.c2e(f, w // 2, w, cube_format="list"), repeat
-                )
+    rows = []
+    print(_machine())
+    print(f"peer: {peer_name}")
+    for name in plates:
+        width, height = PLATES[name]
+        plate = _plate(width, height)
+        for size in widths:
+            row = {"plate": name, "width": size}
+            if p360 is not None and name == plates[0]:
+                row["peer"] = median_ms(_peer_call(p360, plate, size), repeat)
+            for m in METHODS:
+                runs = repeat if size <= 1024 else min(repeat, 3) if size <= 2048 else 1
+                cold = lambda m=m, s=size, w=width, h=height: _table(m, w, h, s)  # noqa: E731
+                row[f"cold {m}"] = median_ms(cold, runs)
+                table = _table(m, width, height, size)
+                row[f"mb {m}"] = nbytes(table) / 2**20
+                pyramid = pyramid_size(height, width, table.levels, table.first_level) * 12
+                row["pyramid mb"] = max(row.get("pyramid mb", 0.0), pyramid / 2**20)
+                row[f"apply {m}"] = median_ms(lambda t=table, p=plate: apply_table(t, p), repeat)
+                del table
+            rows.append(row)
+            print(
+                f"  {name:5s} {size:4d}: "
+                + ", ".join(f"{k} {v:.1f}" for k, v in row.items() if k not in ("plate", "width"))
             )
-        print(
-            f"  lat-long {width:5d} x {width // 2:4d}: build {rows['build'][-1]:7.1f} ms, "
-            f"apply {rows['apply'][-1]:7.1f} ms"
-            + (f", peer c2e {rows['peer'][-1]:7.1f} ms" if rows["peer"] else "")
+        del plate
+        gc.collect()
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), dpi=100)
+    styles = {"1080p": "o", "4K": "s", "8K": "^"}
+    for name in plates:
+        mine = [r for r in rows if r["plate"] == name]
+        x = [r["width"] for r in mine]
+        for m, ls in (("paper", "-"), ("camera", "--")):
+            axes[0].plot(
+                x,
+                [r[f"apply {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
+            axes[1].plot(
+                x,
+                [r[f"cold {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
+            axes[2].plot(
+                x,
+                [r[f"mb {m}"] for r in mine],
+                ls,
+                marker=styles[name],
+                label=f"ours {m}, {name} plate",
+            )
+        axes[2].plot(
+            x,
+            [r["pyramid mb"] for r in mine],
+            ":",
+            marker=styles[name],
+            color="grey",
+            label=f"the plate's pyramid, {name} plate",
         )
-    fig, ax = plt.subplots(figsize=(6.4, 3.6), dpi=100)
-    ax.plot(widths, rows["apply"], "o-", label="ours: apply table (plate -> lat-long)")
-    ax.plot(widths, rows["build"], "s--", label="ours: build table (once per bounds)")
-    if rows["peer"]:
-        ax.plot(widths, rows["peer"], "^-", label=f"peer: {peer_name} c2e (cube -> lat-long)")
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xticks(widths, [f"{w}x{w // 2}" for w in widths])
-    ax.set_xlabel("lat-long map size")
-    ax.set_ylabel("median time (ms)")
-    ax.set_title(f"1920x1080 plate, {os.cpu_count()} cores, medians of {repeat}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+        if "peer" in mine[0]:
+            axes[0].plot(
+                x,
+                [r["peer"] for r in mine],
+                "k:",
+                marker="x",
+                lw=2,
+                label="peer: py360convert c2e (cube faces)",
+            )
+    titles = ("per frame (table cached)", "cold table (new bounds or camera)", "memory")
+    for ax, title, unit in zip(axes, titles, ("ms", "ms", "MB")):
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        ax.set_xticks(list(widths), [str(w) for w in widths])
+        ax.set_xlabel("lat-long map width (texels)")
+        ax.set_ylabel(f"median {unit}" if unit == "ms" else unit)
+        ax.set_title(title)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    axes[2].legend(fontsize=7)
+    fig.suptitle(f"{os.cpu_count()} cores, NumPy {np.__version__}; peer: {peer_name}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
     print(f"wrote {path}")
     return rows
-
-
-def run_bench(repeat: int = 15) -> dict:
-    """Print and return the figures (milliseconds, medians over `repeat` runs)."""
-    plate = _plate()
-    seg = segment(PLATE_W, PLATE_H, BBOX, Params())
-    figures = {}
-    tables = {}
-    for layout, size in (("latlong", 1024), ("cube", 512)):
-        tables[layout] = build_table(seg, layout, size)
-        figures[f"build {layout}"] = median_ms(
-            lambda layout=layout, size=size: build_table(seg, layout, size), max(3, repeat // 3)
-        )
-    faces_strip = apply_table(tables["cube"], plate)
-    faces = [faces_strip[i * 512 : (i + 1) * 512] for i in range(6)]
-    # Our cube strip is OpenEXR-ordered; the peer's list order is F R B L U D. Orientation
-    # does not change its cost, so the faces are passed as they are.
-    p360, peer_name = _peer()
-    if p360 is not None:
-        p360.c2e(faces, 512, 1024, cube_format="list")  # warm its cached sampler
-    ours, peer = [], []
-    for _ in range(repeat):  # interleaved, so both see the same machine load
-        t = time.perf_counter()
-        apply_table(tables["latlong"], plate)
-        ours.append(time.perf_counter() - t)
-        if p360 is not None:
-            t = time.perf_counter()
-            p360.c2e(faces, 512, 1024, cube_format="list")
-            peer.append(time.perf_counter() - t)
-    figures["apply latlong"] = 1000.0 * float(np.median(ours))
-    figures["apply cube"] = median_ms(lambda: apply_table(tables["cube"], plate), repeat)
-    if peer:
-        figures["peer c2e"] = 1000.0 * float(np.median(peer))
-        figures["ratio"] = figures["apply latlong"] / figures["peer c2e"]
-
-    print(
-        f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}, NumPy {np.__version__}"
-    )
-    print(f"plate {PLATE_W}x{PLATE_H}, bbox {BBOX}, medians of {repeat} runs")
-    print(f"  build table, 1024x512 lat-long : {figures['build latlong']:8.1f} ms")
-    print(f"  build table, 6x512^2 cube      : {figures['build cube']:8.1f} ms")
-    print(f"  apply table, 1024x512 lat-long : {figures['apply latlong']:8.1f} ms")
-    print(f"  apply table, 6x512^2 cube      : {figures['apply cube']:8.1f} ms")
-    if peer:
-        print(f"  peer: {peer_name} c2e cube->1024x512 (warm): {figures['peer c2e']:8.1f} ms")
-        print(f"  ratio ours/peer (apply lat-long / c2e): {figures['ratio']:.2f}  (target <= 1.00)")
-    else:
-        print(f"  peer: {peer_name}")
-    return figures

@@ -51,7 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     p = sub.add_parser("bench", help="time table building and applying against py360convert")
     p.add_argument("--repeat", type=_positive, default=15, help="runs per figure (median)")
-    p.add_argument("--chart", metavar="PNG", help="also chart apply time against map size")
+    p.add_argument(
+        "--chart", metavar="PNG", help="also chart time and memory against map and plate size"
+    )
     p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
     p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
     p.add_argument(

@@ -81,10 +81,55 @@ def clamp_to_view(directions, width, height, intrinsics):
     position = np.stack((np.clip(px, 0.0, width), np.clip(py, 0.0, height)), axis=-1)
     cos_e = np.cos(e)
     clamped = np.stack((np.sin(a) * cos_e, np.sin(e), cos_a * cos_e), axis=-1)
-    cosine = np.clip((d * clamped).sum(-1) / norm, -1.0, 1.0)
+    cosine = np.clip(np.einsum("...i,...i->...", d, clamped) / norm, -1.0, 1.0)
     angle = np.arccos(cosine)
     angle[cosine > 1.0 - 1e-6] = 0.0  # float32 round-off inside the plate's view
     return position.astype(np.float32), angle.astype(np.float32)
+
+
+ANGLE_EPS = math.acos(1.0 - 1e-6)  # angles below count as inside the plate's view
+
+
+def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
+    """`clamp_to_view` for the texel centres of a `size`-wide lat-long (the camera frame's),
+    rows `rows` (a slice; default all): ((n, 2) float32 positions, (n,) float32 angles), n
+    texels row by row.
+
+    A lat-long texel's azimuth is its column's and its elevation its row's, and the clamped
+    elevation is the row's or one of the column's two limits: every trigonometric function
+    is taken per row or per column, the map's texels only combine them."""
+    fx, fy, cx, cy = intrinsics
+    h = size // 2
+    rows = range(h)[rows or slice(None)]
+    el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
+    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)  # (W,) + toward the plate's left
+    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
+    cos_a = np.cos(a)
+    lo = np.arctan((cy - height) / fy * cos_a)  # the frame's bottom and top at this azimuth
+    hi = np.arctan(cy / fy * cos_a)
+    px = np.clip(cx - fx * np.tan(a), 0.0, width).astype(np.float32)
+    below, above = el[:, None] < lo, el[:, None] > hi  # (n, W)
+    # The centre's projection lies in the plate (seen_footprints' test, per row and column).
+    inside = (np.cos(az) > 1e-9) & (az == a) & (np.cos(el)[:, None] > 0) & ~below & ~above
+
+    def pick(f):  # f(e) for the clamped elevation, from per-row and per-column values
+        return np.where(below, f(lo), np.where(above, f(hi), f(el)[:, None])).astype(np.float32)
+
+    py = cy - (fy / cos_a).astype(np.float32) * pick(np.tan)
+    position = np.empty((len(rows), size, 2), np.float32)
+    position[..., 0] = px
+    position[..., 1] = np.clip(py, 0.0, height)
+    # The angle between the direction and its clamped twin, well conditioned for small ones:
+    # sin^2(angle / 2) = sin^2((el - e) / 2) + cos(el) cos(e) sin^2((az - a) / 2).
+    off = np.where(below, el[:, None] - lo, np.where(above, el[:, None] - hi, 0.0))
+    half = np.sin(0.5 * off.astype(np.float32))
+    half *= half
+    side = np.sin(0.5 * (az - a)) ** 2  # (W,)
+    half += pick(np.cos) * (np.cos(el)[:, None] * side).astype(np.float32)
+    np.sqrt(np.clip(half, 0.0, 1.0, out=half), out=half)
+    angle = 2.0 * np.arcsin(half)
+    angle[angle < ANGLE_EPS] = 0.0  # as clamp_to_view: round-off inside the plate's view
+    return position.reshape(-1, 2), angle.ravel(), inside.ravel()
 
 
 def plate_positions(
@@ -134,22 +179,33 @@ def directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float)
     return cube_directions(face, col + dx, frow + dy, size)
 
 
-def seen_footprints(layout, size, directions, width, height, intrinsics):
+def seen_footprints(layout, size, directions, width, height, intrinsics, ids=None):
     """The texels whose centre the plate sees, and their footprints on the plate.
 
-    directions: (T, 3) texel-centre directions. Returns (ids (S,) int64 flat texel indices,
+    directions: (T, 3) texel-centre directions; or, with `ids` (the texels known to be seen,
+    flat indices), theirs only (len(ids), 3). Returns (ids (S,) int64 flat texel indices,
     rect (4, S) float64 x0, x1, y0, y1 in plate pixels: the rectangle between the projections
     of the texel's corners (each side the mean of its two corners), widened to at least one
     pixel about the centre's projection and clipped to the plate).
     """
     fx, fy, cx, cy = intrinsics
-    d = np.asarray(directions, np.float64)
-    z = d[:, 2]
-    ahead = z > 1e-9
-    zs = np.where(ahead, z, 1.0)
-    px = cx - fx * d[:, 0] / zs
-    py = cy - fy * d[:, 1] / zs
-    ids = np.flatnonzero(ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height))
+
+    def project(d):
+        d = np.asarray(d, np.float64)
+        z = d[:, 2]
+        ahead = z > 1e-9
+        zs = np.where(ahead, z, 1.0)
+        px = cx - fx * d[:, 0] / zs
+        py = cy - fy * d[:, 1] / zs
+        return px, py, ahead & (px >= 0) & (px <= width) & (py >= 0) & (py <= height)
+
+    if ids is None:
+        ids = np.concatenate(
+            [a + np.flatnonzero(project(directions[a:b])[2]) for a, b in _chunks(len(directions))]
+            or [np.zeros(0, np.int64)]
+        )
+        directions = directions[ids]
+    px, py, _ = project(directions)
     corners = {}
     ok = np.ones(ids.size, bool)
     for dx in (-0.5, 0.5):
@@ -159,7 +215,7 @@ def seen_footprints(layout, size, directions, width, height, intrinsics):
             cz = np.where(c[:, 2] > 1e-9, c[:, 2], 1.0)
             corners[dx, dy] = (cx - fx * c[:, 0] / cz, cy - fy * c[:, 1] / cz)
     ids = ids[ok]
-    px, py = px[ids], py[ids]
+    px, py = px[ok], py[ok]
 
     def side(a, b, axis):
         return 0.5 * (corners[a][axis][ok] + corners[b][axis][ok])
@@ -224,28 +280,33 @@ def mean_taps(positions, level, shapes, offsets):
     ``positions`` (k pairs of (S,) continuous plate coordinates px, py, at level 0's scale),
     read on mip ``level`` (S,) of the flat bordered pyramid with level ``offsets``."""
     level = np.asarray(level, np.int64)
-    scale = 2.0 ** -level.astype(np.float64)
-    widths = np.array([s[1] for s in shapes], np.int32)[level]
-    heights = np.array([s[0] for s in shapes], np.int32)[level]
-    stride = widths + 2  # a bordered level's row length
-    base = np.asarray(offsets, np.int64)[level].astype(np.int32)
     count = level.size
     index = np.empty((count, len(positions), 4), np.int32)
     weight = np.empty((count, len(positions), 4), np.float32)
     share = np.float32(1.0 / len(positions))
-    for k, (px, py) in enumerate(positions):
-        u, v = px * scale - 0.5, py * scale - 0.5
-        i0, j0 = np.floor(u), np.floor(v)
-        au, av = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
-        i0, j0 = i0.astype(np.int32), j0.astype(np.int32)
-        c0, c1 = np.clip(i0, -1, widths) + 1, np.clip(i0 + 1, -1, widths) + 1
-        r0 = base + (np.clip(j0, -1, heights) + 1) * stride
-        r1 = base + (np.clip(j0 + 1, -1, heights) + 1) * stride
-        index[:, k, 0], index[:, k, 1] = r0 + c0, r0 + c1
-        index[:, k, 2], index[:, k, 3] = r1 + c0, r1 + c1
-        bu, bv = 1.0 - au, 1.0 - av
-        weight[:, k, 0], weight[:, k, 1] = bv * bu * share, bv * au * share
-        weight[:, k, 2], weight[:, k, 3] = av * bu * share, av * au * share
+    widths_all = np.array([s[1] for s in shapes], np.int32)
+    heights_all = np.array([s[0] for s in shapes], np.int32)
+    for a, b in _chunks(count, 4096):  # the texels' taps written while in the cache
+        lv = level[a:b]
+        scale = 2.0 ** -lv.astype(np.float64)
+        widths, heights = widths_all[lv], heights_all[lv]
+        stride = widths + 2  # a bordered level's row length
+        base = np.asarray(offsets, np.int64)[lv].astype(np.int32)
+        for k, (px, py) in enumerate(positions):
+            u, v = px[a:b] * scale - 0.5, py[a:b] * scale - 0.5
+            i0, j0 = np.floor(u), np.floor(v)
+            au, av = (u - i0).astype(np.float32), (v - j0).astype(np.float32)
+            i0, j0 = i0.astype(np.int32), j0.astype(np.int32)
+            c0 = np.minimum(np.maximum(i0, -1), widths) + 1
+            c1 = np.minimum(np.maximum(i0 + 1, -1), widths) + 1
+            r0 = base + (np.minimum(np.maximum(j0, -1), heights) + 1) * stride
+            r1 = base + (np.minimum(np.maximum(j0 + 1, -1), heights) + 1) * stride
+            tap, w = index[a:b, k], weight[a:b, k]
+            tap[:, 0], tap[:, 1] = r0 + c0, r0 + c1
+            tap[:, 2], tap[:, 3] = r1 + c0, r1 + c1
+            bu, bv = 1.0 - au, 1.0 - av
+            w[:, 0], w[:, 1] = bv * bu * share, bv * au * share
+            w[:, 2], w[:, 3] = av * bu * share, av * au * share
     return index.reshape(count, -1), weight.reshape(count, -1)
 
 
@@ -264,7 +325,7 @@ def elevation_deg(directions, up=None) -> np.ndarray:
     """Elevation in degrees of (..., 3) directions above the horizon whose normal is ``up``
     (camera frame), or above the camera's own horizontal plane (up = +Y) without one."""
     d = np.asarray(directions, np.float64)
-    norm = np.sqrt((d * d).sum(-1))
+    norm = np.sqrt(np.einsum("...i,...i->...", d, d))
     norm = np.where(norm > 0, norm, 1.0)
     if up is None:
         height = d[..., 1]
@@ -436,14 +497,23 @@ def side_weight(directions, intrinsics, width: int) -> np.ndarray:
     0.5 straight ahead; behind the camera it returns linearly to 0.5 (straight behind: both
     halves alike)."""
     fx, _, cx, _ = intrinsics
-    d = np.asarray(directions, np.float64)
-    azimuth = np.arctan2(d[:, 0], d[:, 2])
-    left, right = math.atan(cx / fx), math.atan((width - cx) / fx)
-    ahead = np.where(
-        azimuth >= 0, np.sin(azimuth) / math.sin(left), np.sin(azimuth) / math.sin(right)
-    )
-    s = np.where(np.cos(azimuth) >= 0, np.clip(ahead, -1.0, 1.0), np.sin(azimuth))
-    return (0.5 + 0.5 * s).astype(np.float32)
+    left, right = math.sin(math.atan(cx / fx)), math.sin(math.atan((width - cx) / fx))
+    out = np.empty(len(directions), np.float32)
+    for a, b in _chunks(out.size):  # the sine of the azimuth without the trigonometry
+        d = np.asarray(directions[a:b], np.float64)
+        x, z = d[:, 0], d[:, 2]
+        r = np.hypot(x, z)
+        sin_az = np.divide(x, r, out=np.zeros_like(r), where=r > 0)
+        ahead = sin_az / np.where(x >= 0, left, right)
+        s = np.where(z >= 0, np.clip(ahead, -1.0, 1.0), sin_az)
+        out[a:b] = 0.5 + 0.5 * s
+    return out
+
+
+def _chunks(count: int, size: int = 32768):
+    """(start, stop) of consecutive blocks of `size` rows: per-texel work on large maps in
+    blocks keeps its temporaries small (cached, not fresh memory)."""
+    return ((a, min(a + size, count)) for a in range(0, count, size))
 
 
 def fill_taps(directions, base: int, side=None, up=None):
@@ -452,15 +522,128 @@ def fill_taps(directions, base: int, side=None, up=None):
     With `side` ((T,) weight of the left half, `side_weight`): (T, 4) taps, the left profile's
     two and the right profile's (rows `base` + FILL_BINS ..), weighted by side and 1 - side.
     Elevations are above the horizon whose normal is `up` (None: the camera's own)."""
-    elevation = elevation_deg(directions, up).astype(np.float32)
-    b = np.clip(elevation + 90.0, 0, FILL_BINS - 1)
-    b0 = np.minimum(np.floor(b), FILL_BINS - 2)
-    frac = (b - b0).astype(np.float32)
-    index = (base + b0.astype(np.int32))[:, None] + np.arange(2, dtype=np.int32)
-    weight = np.stack((1 - frac, frac), -1).astype(np.float32)
+    count = len(directions)
+    index = np.empty((count, 2 if side is None else 4), np.int32)
+    weight = np.empty(index.shape, np.float32)
+    for a, b in _chunks(count):
+        elevation = elevation_deg(directions[a:b], up).astype(np.float32)
+        _taps_at(elevation, base, None if side is None else side[a:b], index[a:b], weight[a:b])
+    return index, weight
+
+
+FILL_STEPS = 64  # a lat-long's fill is read at elevations rounded to 1/64 of a bin
+
+
+def fill_bins_latlong(size: int, up=None, rows=None, out=None):
+    """Where the fill profile is read for the texel centres of a `size`-wide lat-long, rows
+    `rows` (a slice; default all), texels row by row: (n,) uint16, the elevation in bins
+    above -90 degrees times FILL_STEPS (rounded: 0.008 degrees at most), the compact form of
+    `fill_taps` (whose side weight is the texel's column's). Without `up` a texel's elevation
+    is its row's: then one value per row. `out`: (n,) uint16 to write into."""
+    h = size // 2
+    rows = range(h)[rows or slice(None)]
+    el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
+    if up is None:
+        elevation = np.degrees(el)
+    else:  # d . up = cos(el) (sin(az) ux + cos(az) uz) + sin(el) uy, d a unit vector
+        ux, uy, uz = np.asarray(up, np.float64) / np.linalg.norm(up)
+        az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
+        across = (np.sin(az) * ux + np.cos(az) * uz).astype(np.float32)
+        height = np.cos(el).astype(np.float32)[:, None] * across
+        height += np.float32(uy) * np.sin(el).astype(np.float32)[:, None]
+        elevation = np.degrees(np.arcsin(np.clip(height, -1.0, 1.0)))
+    e = np.clip(elevation.astype(np.float32).ravel() + np.float32(90.0), 0, FILL_BINS - 1)
+    e *= np.float32(FILL_STEPS)
+    out = np.empty(e.size, np.uint16) if out is None else out
+    np.rint(e, out=e)
+    out[:] = e
+    return out
+
+
+def fill_bin_taps(steps, base: int, side=None):
+    """`fill_taps` (index (n, 2 or 4) int32, weight float32) from the compact form
+    (`fill_bins_latlong`; side: (n,) the left half's weight or None)."""
+    index = np.empty((steps.size, 2 if side is None else 4), np.int32)
+    weight = np.empty(index.shape, np.float32)
+    bins = np.minimum(steps // FILL_STEPS, FILL_BINS - 2).astype(np.int32)
+    upper = (steps - bins * FILL_STEPS).astype(np.float32) * np.float32(1.0 / FILL_STEPS)
+    first = base + bins
+    index[:, 0], index[:, 1] = first, first + 1
+    lower = 1 - upper
     if side is None:
-        return index.astype(np.int32), weight
-    side = np.asarray(side, np.float32)[:, None]
-    index = np.concatenate((index, index + FILL_BINS), axis=1)
-    weight = np.concatenate((weight * side, weight * (1 - side)), axis=1)
-    return index.astype(np.int32), weight.astype(np.float32)
+        weight[:, 0], weight[:, 1] = lower, upper
+        return index, weight
+    index[:, 2], index[:, 3] = first + FILL_BINS, first + (FILL_BINS + 1)
+    side = np.asarray(side, np.float32)
+    other = 1 - side
+    np.multiply(lower, side, out=weight[:, 0])
+    np.multiply(upper, side, out=weight[:, 1])
+    np.multiply(lower, other, out=weight[:, 2])
+    np.multiply(upper, other, out=weight[:, 3])
+    return index, weight
+
+
+def fill_lookup(profile) -> np.ndarray:
+    """The fill profile (sides, FILL_BINS, 3) float32 interpolated at every step of
+    `fill_bins_latlong`: (sides, (FILL_BINS - 1) * FILL_STEPS + 1, 3) float32, per frame."""
+    p = np.ascontiguousarray(profile, np.float32)
+    sides = p.shape[0]
+    out = np.empty((sides, (FILL_BINS - 1) * FILL_STEPS + 1, 3), np.float32)
+    t = (np.arange(FILL_STEPS) * (1.0 / FILL_STEPS)).astype(np.float32)
+    step = p[:, 1:] - p[:, :-1]  # (sides, FILL_BINS - 1, 3)
+    # Steps last while computing (long inner loops), then into place.
+    ramp = step[..., None] * t  # (sides, FILL_BINS - 1, 3, FILL_STEPS)
+    ramp += p[:, :-1, :, None]
+    out[:, :-1].reshape(sides, FILL_BINS - 1, FILL_STEPS, 3)[:] = ramp.transpose(0, 1, 3, 2)
+    out[:, -1] = p[:, -1]
+    return out
+
+
+def fill_values(steps, side, lookup, out) -> None:
+    """The fill at lat-long texels from the compact form: out (n, 3) float32 = `lookup`
+    (`fill_lookup`) at each texel's steps (`fill_bins_latlong`; or one per row), the two
+    sides blended by `side` ((3 W,) float32: the left side's weight per column, repeated for
+    R, G, B; n a whole number of rows), or one side's (side None)."""
+    if steps.size < out.shape[0]:  # one step per row: each row's colours by column
+        rows = out.reshape(steps.size, -1, 3)
+        left = np.take(lookup[0], steps, axis=0)  # (rows, 3)
+        if side is None:
+            rows[:] = left[:, None]
+            return
+        right = np.take(lookup[1], steps, axis=0)
+        left -= right
+        for c in range(3):  # outer products: long inner loops
+            np.multiply.outer(left[:, c], side[c::3], out=rows[:, :, c])
+            rows[:, :, c] += right[:, c, None]
+        return
+    if side is None:
+        np.take(lookup[0], steps, axis=0, out=out)
+        return
+    np.take(lookup[1], steps, axis=0, out=out)
+    left = np.take(lookup[0], steps, axis=0)
+    left -= out
+    flat = left.reshape(-1, side.size)  # rows of 3 W floats: long inner loops
+    flat *= side
+    out += left
+
+
+def _taps_at(elevation, base, side, index, weight) -> None:
+    """Write the fill's taps and weights (see `fill_taps`) for (n,) float32 elevations in
+    degrees into index (n, 2 or 4) int32 and weight (n, 2 or 4) float32."""
+    e = np.clip(elevation + np.float32(90.0), 0, FILL_BINS - 1)
+    b0 = np.minimum(np.floor(e), FILL_BINS - 2)
+    frac = e - b0
+    first = base + b0.astype(np.int32)
+    index[:, 0], index[:, 1] = first, first + 1
+    if side is None:
+        weight[:, 0], weight[:, 1] = 1 - frac, frac
+        return
+    # Column by column: NumPy is slow on (n, 2) slices (its inner loop is 2 long).
+    index[:, 2], index[:, 3] = first + FILL_BINS, first + (FILL_BINS + 1)
+    side = np.asarray(side, np.float32)
+    other = 1 - side
+    low = 1 - frac
+    np.multiply(low, side, out=weight[:, 0])
+    np.multiply(frac, side, out=weight[:, 1])
+    np.multiply(low, other, out=weight[:, 2])
+    np.multiply(frac, other, out=weight[:, 3])

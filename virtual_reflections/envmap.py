@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 
-from .camera_view import FILL_BINS, fill_profile
+from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
@@ -36,10 +36,13 @@ def _scratch(name: str, shape: tuple) -> np.ndarray:
     return buf[:size].reshape(shape)
 
 
-def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
+def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None) -> np.ndarray:
     """One filtered gather: (H, W, 3) float32 clean linear plate -> (h, w, 3) float32 map.
 
-    The plate must have the size the table was built for.
+    The plate must have the size the table was built for. `pyramids`: a dict the caller keeps
+    for this plate (its pixels unchanged while the dict lives): the plate's mip pyramid is
+    built once per set of levels and kept there, so several maps of one plate (several
+    objects, a regeneration) share it.
     """
     seg = table.segmentation
     if plate.shape[:2] != (seg.height, seg.width):
@@ -51,8 +54,15 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
     fill = table.fill
     extra = FILL_BINS * fill.sides if fill is not None else 0
-    source = _scratch("pyramid", (rows + extra, 3))
-    pyramid = build_pyramid(plate, table.levels, first, out=source[:rows])
+    key = (seg.height, seg.width, table.levels, first)
+    source = None if pyramids is None else pyramids.get(key)
+    if source is None:
+        if pyramids is None:
+            source = _scratch("pyramid", (rows + extra, 3))
+        else:  # with room for any table's fill rows after it
+            source = pyramids[key] = np.empty((rows + 2 * FILL_BINS, 3), np.float32)
+        build_pyramid(plate, table.levels, first, out=source[:rows])
+    pyramid = source[:rows]
     if fill is not None:
         shapes = level_shapes(seg.height, seg.width, table.levels)
         level = level_view(pyramid, shapes, fill.level, first)
@@ -68,6 +78,17 @@ def apply_table(table: LookupTable, plate: np.ndarray) -> np.ndarray:
             sky_gain=fill.sky_gain,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
+    if table.fill_texels is not None:  # the fill everywhere, the groups written over it
+        steps, side = table.fill_texels
+        lookup = fill_lookup(source[fill.base : fill.base + extra].reshape(-1, FILL_BINS, 3))
+        width = table.shape[1]
+
+        def fill_rows(a, b):
+            texels = slice(a * width, b * width)
+            mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
+            fill_values(mine, side, lookup, out[texels])
+
+        for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
     for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))

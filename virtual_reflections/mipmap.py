@@ -40,20 +40,36 @@ def _halve(src: np.ndarray, dst: np.ndarray) -> None:
     """Average 2 x 2 blocks of src (h, w, 3) into dst ((h+1)//2, (w+1)//2, 3).
 
     Rows are summed with one contiguous add; horizontal pairs (6 adjacent floats) with a
-    small matrix product, which avoids NumPy's slow stride-2 loops over 3-float pixels.
+    small matrix product, which avoids NumPy's slow stride-2 loops over 3-float pixels. The
+    work goes in blocks of HALVE_ROWS output rows over the cores: the temporaries stay small
+    and cached instead of being fresh memory as large as the level.
     """
     h, w, _ = src.shape
-    he, we = h - h % 2, w - w % 2
-    rows = src[0:he:2] + src[1:he:2]  # (h//2, w, 3)
-    if h % 2:
-        rows = np.concatenate((rows, 2.0 * src[-1:]), axis=0)
-    pairs = (
-        rows[:, :we].reshape(-1, 6)
-        if rows.flags.c_contiguous and not w % 2
-        else (np.ascontiguousarray(rows[:, :we]).reshape(-1, 6))
-    )
-    dst[:, : we // 2] = (pairs @ _PAIR_SUM).reshape(rows.shape[0], we // 2, 3)
-    if w % 2:
+    we = w - w % 2
+    half = dst.shape[0]
+
+    def block(a, b):
+        pairs = h // 2
+        stop = min(b, pairs)
+        if stop > a:
+            rows = src[2 * a : 2 * stop : 2] + src[2 * a + 1 : 2 * stop : 2]
+            _pairs(rows, dst[a:stop], we)
+        if b == half and h % 2:  # an odd last row: repeated
+            _pairs(2.0 * src[-1:], dst[-1:], we)
+
+    for_blocks(block, half, min_rows=HALVE_ROWS, max_rows=HALVE_ROWS)
+
+
+HALVE_ROWS = 16
+
+
+def _pairs(rows: np.ndarray, dst: np.ndarray, we: int) -> None:
+    """dst (n, (w+1)//2, 3) = the sums of horizontal pairs of rows (n, w, 3) (row pairs
+    already summed), scaled by 1/4; an odd last column is repeated."""
+    n = rows.shape[0]
+    pairs = np.ascontiguousarray(rows[:, :we]).reshape(-1, 6)
+    dst[:, : we // 2] = (pairs @ _PAIR_SUM).reshape(n, we // 2, 3)
+    if rows.shape[1] % 2:
         dst[:, -1] = 0.5 * rows[:, -1]
 
 

@@ -11,6 +11,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 MIN_ROWS = 65536  # texels: below this, one thread is faster
+CHUNK = 32768  # texels per block when working in chunks: temporaries stay small and cached
 _pool: ThreadPoolExecutor | None = None
 
 
@@ -26,17 +27,24 @@ def workers() -> int:
     return max(1, min(cores, 8))
 
 
-def for_blocks(fn, rows: int, min_rows: int = MIN_ROWS) -> None:
+def for_blocks(fn, rows: int, min_rows: int = MIN_ROWS, max_rows: int | None = None) -> None:
     """Call fn(start, stop) over consecutive blocks covering range(rows), in parallel;
-    each block gets at least `min_rows` rows."""
+    each block gets at least `min_rows` rows and, with `max_rows`, at most that many (the
+    blocks then outnumber the threads, which take them in turn: a caller working on large
+    arrays keeps its temporaries small, so they are neither fresh memory nor out of cache)."""
     n = min(workers(), max(1, rows // min_rows))
-    if n == 1:
+    blocks = n if max_rows is None else max(n, -(-rows // max_rows))
+    if blocks == 1:
         fn(0, rows)
+        return
+    if n == 1:
+        for i in range(blocks):
+            fn(rows * i // blocks, rows * (i + 1) // blocks)
         return
     global _pool
     if _pool is None or _pool._max_workers < n:
         _pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="vr")
-    bounds = [rows * i // n for i in range(n + 1)]
+    bounds = [rows * i // blocks for i in range(blocks + 1)]
     futures = [_pool.submit(fn, a, b) for a, b in zip(bounds, bounds[1:])]
     for f in futures:
         f.result()

