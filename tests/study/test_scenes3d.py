@@ -114,8 +114,8 @@ def test_the_outputs_hold_every_method_and_metric(quick_run):
             "mirror",
             "rough 0.15",
             "rough 0.35",
-            "rough 0.15, Replace",
-            "rough 0.35, Replace",
+            "rough 0.15, Mix",
+            "rough 0.35, Mix",
         }
         for scores in record["results"].values():
             for method in methods:
