@@ -538,7 +538,7 @@ def roughness(obj) -> float:
         mat = slot.material
         if mat is None:
             continue
-        tree = mat.node_tree if (mat.use_nodes or _USE_NODES_DEPRECATED) else None
+        tree = mat.node_tree if (_USE_NODES_DEPRECATED or mat.use_nodes) else None
         for node in tree.nodes if tree is not None else ():
             if node.bl_idname in GLOSSY_NODES and "Roughness" in node.inputs:
                 socket = node.inputs["Roughness"]
