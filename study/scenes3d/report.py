@@ -198,14 +198,29 @@ def pick_example_scenes(data, count=3) -> list:
 def contact_sheet(data, crops, path, names=None) -> None:
     """Rows: scenes; columns: truth | the add-on's methods | on-set probe | plate stretched |
     plate mean, each cropped around the mirror subject and composited over the plate."""
-    plt = _plt()
     names = [n for n in (names or pick_example_scenes(data)) if n in crops]
     columns = ["Truth", *data["addon_methods"], PROBE, "Plate stretched", MEAN]
     scores = {r["scene"]["name"]: r["results"]["mirror"] for r in data["scenes"]}
+
+    def label(name, column):
+        if column == "Truth":
+            return name, 6
+        m = scores[name][column]
+        return f"{m['psnr']:.1f} dB / {m['ssim']:.2f}", 7
+
+    _image_grid(crops, names, columns, (1.9, 1.9, 0.3), (lambda c: c, 8), label, path)
+
+
+def _image_grid(crops, names, columns, cell, title, label, path) -> None:
+    """A grid of crops (rows ``names``, columns ``columns``) saved to ``path``. cell: (width,
+    height, extra height) in inches; title: (column -> title, font size); label: (name,
+    column) -> (text under the image, font size)."""
+    plt = _plt()
+    width, height, extra = cell
     fig, axes = plt.subplots(
         len(names),
         len(columns),
-        figsize=(1.9 * len(columns), 1.9 * len(names) + 0.3),
+        figsize=(width * len(columns), height * len(names) + extra),
         squeeze=False,
     )
     for i, name in enumerate(names):
@@ -215,12 +230,9 @@ def contact_sheet(data, crops, path, names=None) -> None:
             ax.set_xticks([])
             ax.set_yticks([])
             if i == 0:
-                ax.set_title(column, fontsize=8)
-            if column != "Truth":
-                m = scores[name][column]
-                ax.set_xlabel(f"{m['psnr']:.1f} dB / {m['ssim']:.2f}", fontsize=7)
-            else:
-                ax.set_xlabel(name, fontsize=6)
+                ax.set_title(title[0](column), fontsize=title[1])
+            text, size = label(name, column)
+            ax.set_xlabel(text, fontsize=size)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -433,37 +445,23 @@ def table_inter(data) -> str:
 def contact_sheet_inter(data, crops, path) -> None:
     """Rows: cases; columns: truth, then one pass and auto per add-on method, cropped around
     the mirrors and composited over the plate."""
-    plt = _plt()
     names = [r["scene"]["name"] for r in data["scenes"] if r["scene"]["name"] in crops]
     columns = ["Truth", BLIND] + [
         f"{m}: {run}" for m in data["addon_methods"] for run in (ONE, AUTO)
     ]
     records = {r["scene"]["name"]: r for r in data["scenes"]}
-    fig, axes = plt.subplots(
-        len(names),
-        len(columns),
-        figsize=(2.2 * len(columns), 1.5 * len(names) + 0.4),
-        squeeze=False,
-    )
-    for i, name in enumerate(names):
-        for j, column in enumerate(columns):
-            ax = axes[i, j]
-            ax.imshow(np.clip(crops[name][column], 0, 1), interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if i == 0:
-                ax.set_title(
-                    column.replace(": ", "\n").replace(" without", "\nwithout"), fontsize=7
-                )
-            if column == "Truth":
-                ax.set_xlabel(_case(records[name]), fontsize=6)
-            elif column == BLIND:
-                m = records[name]["results"]["mirror"][BLIND]
-                ax.set_xlabel(f"{m['psnr']:.2f} dB / {m['ssim']:.3f}", fontsize=6)
-            else:
-                method, run = column.split(": ")
-                m = records[name]["passes"][method][run]
-                ax.set_xlabel(f"{m['psnr']:.2f} dB / {m['ssim']:.3f}", fontsize=6)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+
+    def title(column):
+        return column.replace(": ", "\n").replace(" without", "\nwithout")
+
+    def label(name, column):
+        if column == "Truth":
+            return _case(records[name]), 6
+        if column == BLIND:
+            m = records[name]["results"]["mirror"][BLIND]
+        else:
+            method, run = column.split(": ")
+            m = records[name]["passes"][method][run]
+        return f"{m['psnr']:.2f} dB / {m['ssim']:.3f}", 6
+
+    _image_grid(crops, names, columns, (2.2, 1.5, 0.4), (title, 7), label, path)
