@@ -34,6 +34,8 @@ def why_not_generate(context):
     scene = context.scene
     if scene is None:
         return "No scene"
+    if _running is not None:
+        return f"{_running.name} is under way: wait for it, or press Esc to stop it"
     if scene.camera is None:
         return "The scene has no camera: add one and make it active"
     if scene.camera.type != "CAMERA":
@@ -67,16 +69,45 @@ def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.
     Raises ValueError (one line) when nothing can be done: no camera, no or bad plate.
     Per-object problems (off-screen, linked data, no geometry) become warnings.
     """
-    run = steps(scene, depsgraph, objects, pixels)
     total = 2 * len(objects)
+    return drive(
+        steps(scene, depsgraph, objects, pixels),
+        (lambda done: progress(done * total)) if progress else None,
+    )
+
+
+def drive(run, progress=None):
+    """Run a generator of `Step`s to its end on this thread (the blocking run: scripts,
+    ``blender -b``, the batch) and return its value. progress: called with each step's
+    ``done`` (0..1) before the step runs."""
     try:
         step = next(run)
         while True:
             if progress:
-                progress(step.done * total)
+                progress(step.done)
             step = run.send(step.work() if step.work else None)
     except StopIteration as finished:
         return finished.value
+
+
+def within(run, start, end, label=""):
+    """Delegate to the generator of `Step`s ``run`` (``yield from`` it), its ``done`` put
+    in ``start..end`` of the whole and its stage after ``label``; returns its value. Closing
+    the outer generator closes ``run``."""
+    try:
+        try:
+            step = next(run)
+        except StopIteration as finished:
+            return finished.value
+        while True:
+            stage = f"{label}{step.stage[:1].lower()}{step.stage[1:]}" if label else step.stage
+            value = yield Step(stage, start + (end - start) * step.done, step.work)
+            try:
+                step = run.send(value)
+            except StopIteration as finished:
+                return finished.value
+    finally:
+        run.close()
 
 
 def steps(scene, depsgraph, objects, pixels=None):
@@ -172,13 +203,19 @@ def steps(scene, depsgraph, objects, pixels=None):
 
 
 class Job:
-    """A Generate run from Blender's window (ops.py), one `Step` per `advance`: the steps
-    that touch Blender on the main thread, their engine work in a thread, so the window keeps
-    drawing. ValueError (one line) as `generate`, when it is made or from `advance`."""
+    """A run from Blender's window (ops.py) over a generator of `Step`s (`steps`,
+    interreflect.pass_steps), one `Step` per `advance`: the steps that touch Blender on the
+    main thread, their engine work in a thread, so the window keeps drawing. One Job at a
+    time (`running`; the panel shows its stage). ValueError (one line) when it is made (the
+    first step's, or another run under way) or from `advance`."""
 
-    def __init__(self, scene, depsgraph, objects):
+    def __init__(self, run, name="Generate"):
         global _running
-        self._steps = steps(scene, depsgraph, objects)
+        if _running is not None:
+            run.close()
+            raise ValueError(f"{_running.name} is under way: wait for it, or press Esc to stop it")
+        self.name = name
+        self._steps = run
         self.step = next(self._steps)
         self._thread = None
         self._outcome = None  # (result, exception) of the work in the thread
@@ -240,11 +277,12 @@ class Job:
             _running = None
 
 
-_running = None  # the Job under way in the window, for the panel
+_running = None  # the Job under way in the window, for the panel and the polls
 
 
 def running() -> Job | None:
-    """The Generate run under way in the window, or None (the panel shows its stage)."""
+    """The run under way in the window (Generate, Inter-Reflections), or None (the panel
+    shows its stage)."""
     return _running
 
 

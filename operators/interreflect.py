@@ -116,13 +116,45 @@ def render_passes(
     read). pixels: the scene's plate, (H, W, 3) float32 scene-linear, as `plate.pixels` gives
     it (pass 1 is Generate, which reads the scene's plate itself). passes: r, an int >= 1, or
     "auto": passes until one changes the objects' pixels by less than ``tolerance`` (mean
-    absolute, scene-linear), at most ``r_max``. progress: called with the number of passes done.
+    absolute, scene-linear), at most ``r_max``. progress: called with the number of passes
+    done, a float (0 .. the pass limit) that grows as the passes advance.
     composite: (h, w, 3) float32, the last render over the plate; rgba: (h, w, 4) float32
     premultiplied, the last render (later passes pasted into the first); reports: one
     `PassReport` per pass. ``self_mask=False`` follows Listing 1 literally: objects see their
     own previous image too. ``neighbours=False`` leaves each map as Generate builds it from
     the composite (`_place_neighbours`). Raises ValueError (one line) when nothing can be
     rendered.
+
+    The blocking run of `pass_steps` (the same arguments): scripts, ``blender -b``, the batch.
+    """
+    limit = _pass_limit(passes, r_max)
+    run = pass_steps(
+        scene, depsgraph, objects, pixels, passes, tolerance, r_max,
+        self_mask=self_mask, neighbours=neighbours,
+    )  # fmt: skip
+    return generate.drive(run, (lambda done: progress(done * limit)) if progress else None)
+
+
+def pass_steps(
+    scene,
+    depsgraph,
+    objects,
+    pixels,
+    passes=1,
+    tolerance=TOLERANCE,
+    r_max=R_MAX,
+    *,
+    self_mask=True,
+    neighbours=True,
+):
+    """`render_passes` as a generator of `generate.Step`s, returning what it returns: the
+    operator runs it step by step from the window (generate.Job), the maps' engine work in a
+    thread and each render between two redraws. ``done`` counts passes: pass k runs from
+    (k - 1) / limit to k / limit of the whole (limit: r, or ``r_max`` for "auto").
+
+    Closed between steps (Esc), it restores the render settings and removes its temporary
+    files; what pass 1 (Generate) and later passes changed in the maps stays: the caller
+    restores that (`reflection_snapshot`).
     """
     settings = scene.virtual_reflections
     limit = _pass_limit(passes, r_max)
@@ -141,17 +173,24 @@ def render_passes(
         )
     layer = depsgraph.view_layer
     reports = []
+
+    def label(k):
+        return f"Pass {k} of {limit}: " if passes != "auto" else f"Pass {k} (at most {limit}): "
+
     with tempfile.TemporaryDirectory(prefix="vr-passes-") as folder:
         path = os.path.join(folder, "pass.exr")
         # Pass 1: Generate, then one full render.
         started = time.perf_counter()
-        generated = generate.generate(scene, depsgraph, objects)
+        generated = yield from generate.within(
+            generate.steps(scene, depsgraph, objects), 0.0, 0.6 / limit, label(1)
+        )
         maps_seconds = time.perf_counter() - started
         by_name = {obj.name: obj for obj in objects}
         done = [by_name[name] for name in generated.done]
         if not done:
             raise ValueError("no reflection generated: " + "; ".join(generated.warnings))
         with _render_state(scene, layer, path, done) as ids:
+            yield generate.Step(label(1) + "rendering", 0.6 / limit)
             rgba, index, render_seconds = _render(scene, layer, path)
             h, w = rgba.shape[:2]
             plate_small = resize_nearest(plate, h, w)
@@ -171,8 +210,6 @@ def render_passes(
                     tuple(generated.warnings) + _method_note(settings, limit, len(done)),
                 )
             )
-            if progress:
-                progress(1)
             if limit == 1:
                 return composite, rgba, reports
 
@@ -191,19 +228,26 @@ def render_passes(
                 started = time.perf_counter()
                 # The previous composite is the new plate ...
                 inside[...] = over(rgba[sub], plate_inside)
-                for obj in done:
+                for n, obj in enumerate(done):
                     # ... except where the object itself is: there it sees the original plate.
                     # Generate builds the map exactly as in pass 1 (same bounds, size and
                     # settings: the engine's cached table) and stores it in place.
                     mine = own_sub[obj] if self_mask else np.zeros(inside.shape[:2], bool)
                     kept = inside[mine]
                     inside[mine] = plate_inside[mine]
-                    generate.generate(scene, depsgraph, [obj], pixels=source)
+                    share = (k - 1 + 0.6 * n / len(done)) / limit
+                    yield from generate.within(
+                        generate.steps(scene, depsgraph, [obj], pixels=source),
+                        share,
+                        share + 0.6 / len(done) / limit,
+                        label(k),
+                    )
                     if neighbours:
                         others = {o: core[o] for o in done if o is not obj}
                         _place_neighbours(scene, depsgraph, obj, others, source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started
+                yield generate.Step(label(k) + "rendering", (k - 0.4) / limit)
                 new, _, render_seconds = _render(scene, layer, path)
                 rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
                 previous, composite = composite, over(rgba, plate_small)
@@ -217,8 +261,6 @@ def render_passes(
                         render_seconds,
                     )
                 )
-                if progress:
-                    progress(k)
                 if passes == "auto" and reports[-1].change < tolerance:
                     break
     return composite, rgba, reports

@@ -7,7 +7,16 @@ Inter-Reflections (interreflect.py), Open in Image Editor (previews.py).
 
 import bpy
 
-from . import compositor, generate, interreflect, maps, plate, previews, shading
+from . import (
+    compositor,
+    generate,
+    interreflect,
+    maps,
+    plate,
+    previews,
+    reflection_snapshot,
+    shading,
+)
 
 COMPOSITE_IMAGE = "VR Inter-Reflections"  # the last inter-reflection render over the plate
 COMPOSITE_KIND = "composite"
@@ -27,7 +36,67 @@ _NAVIGATION = {
 }  # fmt: skip
 
 
-class VR_OT_generate(bpy.types.Operator):
+class _Stepped:
+    """The window's run of an operator's generator of steps (generate.Job): each step's
+    engine work in a thread, a progress bar (the cursor's and the panel's, with the stage),
+    Esc to stop. Subclasses give ``_finish(context, result)`` and may give ``_undo(context)``
+    (what a stopped or failed run must put back)."""
+
+    def _start(self, context, run, name):
+        try:
+            self._job = generate.Job(run, name)
+        except ValueError as exc:
+            self._undo(context)
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._shown = None  # the stage the panel shows
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        _redraw_panels(context)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._end(context)
+            self._undo(context)
+            self.report({"INFO"}, f"{self._job.name} stopped: the scene is as it was")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
+        try:
+            result = self._job.advance()
+        except Exception as exc:  # ValueError: bad input; else a bug, one line all the same
+            self._end(context)
+            self._undo(context)
+            self.report({"ERROR"}, str(exc).strip().splitlines()[0] if str(exc) else repr(exc))
+            return {"CANCELLED"}
+        if self._job.stage != self._shown:  # redraw when there is something new to show
+            self._shown = self._job.stage
+            context.window_manager.progress_update(int(100 * self._job.done))
+            _redraw_panels(context)
+        if result is None:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        return self._finish(context, result)
+
+    def cancel(self, context):  # Blender closes the window or loads a file meanwhile
+        self._end(context)
+        self._undo(context)
+
+    def _end(self, context):
+        self._job.stop()
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        _redraw_panels(context)
+
+    def _undo(self, context):
+        pass
+
+
+class VR_OT_generate(_Stepped, bpy.types.Operator):
     """Build each selected (or marked) object's environment map and make it reflect it"""
 
     bl_idname = "vr.generate"
@@ -73,54 +142,14 @@ class VR_OT_generate(bpy.types.Operator):
 
     def invoke(self, context, event):
         """From the window: step by step, the engine's work in a thread, with a progress bar
-        (the panel's and the cursor's); Esc stops it and leaves the scene as it was."""
+        (the panel's and the cursor's); Esc stops it and leaves the scene as it was (Generate
+        changes the scene only in its last step)."""
         if context.window is None or bpy.app.background:
             return self.execute(context)
-        try:
-            self._job = generate.Job(
-                context.scene, context.evaluated_depsgraph_get(), generate.candidates(context)
-            )
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self._shown = None  # the stage the panel shows
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.02, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self._end(context)
-            self.report({"INFO"}, "Generate cancelled: nothing changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
-        try:
-            report = self._job.advance()
-        except Exception as exc:  # ValueError: bad input; else a bug, one line all the same
-            self._end(context)
-            self.report({"ERROR"}, str(exc).strip().splitlines()[0] if str(exc) else repr(exc))
-            return {"CANCELLED"}
-        if self._job.stage != self._shown:  # redraw when there is something new to show
-            self._shown = self._job.stage
-            context.window_manager.progress_update(int(100 * self._job.done))
-            _redraw_panels(context)
-        if report is None:
-            return {"RUNNING_MODAL"}
-        self._end(context)
-        return self._finish(context, report)
-
-    def cancel(self, context):  # Blender closes the window or loads a file meanwhile
-        self._end(context)
-
-    def _end(self, context):
-        self._job.stop()
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        _redraw_panels(context)
+        run = generate.steps(
+            context.scene, context.evaluated_depsgraph_get(), generate.candidates(context)
+        )
+        return self._start(context, run, "Generate")
 
 
 def _redraw_panels(context):
@@ -238,14 +267,14 @@ def show_composite(context, composite):
     return image
 
 
-class VR_OT_render_passes(bpy.types.Operator):
+class VR_OT_render_passes(_Stepped, bpy.types.Operator):
     """Render the reflective objects reflecting each other (paper §3.3)"""
 
     bl_idname = "vr.render_passes"
     bl_label = "Render Inter-Reflections"
     bl_description = (
         "Render the reflective objects reflecting each other (paper §3.3): each pass builds the "
-        f"maps from the previous composite, into the image '{COMPOSITE_IMAGE}'"
+        f"maps from the previous composite, into the image '{COMPOSITE_IMAGE}' (Esc stops it)"
     )
     bl_options = {"REGISTER", "UNDO"}
 
@@ -278,27 +307,63 @@ class VR_OT_render_passes(bpy.types.Operator):
     def poll(cls, context):
         return _poll_generate(cls, context)
 
-    def execute(self, context):
+    def _arguments(self, context):
+        """(scene, depsgraph, objects, plate pixels, passes): ValueError (one line) when the
+        plate cannot be read."""
         scene = context.scene
+        pixels, _ = plate.pixels(scene)
         passes = "auto" if self.auto else self.passes
+        objects = generate.candidates(context)
+        return scene, context.evaluated_depsgraph_get(), objects, pixels, passes
+
+    def execute(self, context):
+        """The blocking run: scripts, `blender -b` (EXEC_DEFAULT). A failed run puts the
+        objects' reflections back as they were."""
         wm = context.window_manager
+        self._snapshot = None
         wm.progress_begin(0, interreflect.R_MAX if self.auto else self.passes)
         try:
-            pixels, _ = plate.pixels(scene)
-            composite, _, reports = interreflect.render_passes(
-                scene,
-                context.evaluated_depsgraph_get(),
-                generate.candidates(context),
-                pixels,
-                passes,
-                tolerance=self.tolerance,
-                progress=wm.progress_update,
-            )
+            scene, depsgraph, objects, pixels, passes = self._arguments(context)
+            self._snapshot = reflection_snapshot.Snapshot(scene, objects)
+            result = interreflect.render_passes(
+                scene, depsgraph, objects, pixels, passes,
+                tolerance=self.tolerance, progress=wm.progress_update,
+            )  # fmt: skip
         except (ValueError, RuntimeError) as exc:
+            self._undo(context)
             self.report({"ERROR"}, str(exc).strip().splitlines()[0])
             return {"CANCELLED"}
         finally:
             wm.progress_end()
+        return self._finish(context, result)
+
+    def invoke(self, context, event):
+        """From the window: pass by pass, the maps' engine work in a thread and each render
+        between two redraws, with a progress bar and the stage in the panel; Esc stops it
+        (after the render under way) and puts the scene back as it was: the render settings,
+        the objects' reflections and maps (reflection_snapshot), the composite image."""
+        if context.window is None or bpy.app.background:
+            return self.execute(context)
+        self._snapshot = None
+        try:
+            scene, depsgraph, objects, pixels, passes = self._arguments(context)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._snapshot = reflection_snapshot.Snapshot(scene, objects)
+        run = interreflect.pass_steps(
+            scene, depsgraph, objects, pixels, passes, tolerance=self.tolerance
+        )
+        return self._start(context, run, "Inter-Reflections")
+
+    def _undo(self, context):
+        if self._snapshot is not None:
+            self._snapshot.restore()
+            self._snapshot = None
+
+    def _finish(self, context, result):
+        composite, _, reports = result
+        scene = context.scene
         show_composite(context, composite)
         for warning in reports[0].warnings:
             self.report({"WARNING"}, warning)

@@ -40,7 +40,7 @@ def test_the_job_makes_the_maps_the_blocking_run_makes(shot):
     expected = {o.name: pixels(bpy.data.images[f"VR Map {o.name}"]) for o in objects}
     generate.remove_all()
     stages, shares = [], []
-    job = generate.Job(scene, depsgraph, objects)
+    job = generate.Job(generate.steps(scene, depsgraph, objects))
     assert generate.running() is job
     while True:
         stages.append(job.stage)
@@ -64,9 +64,25 @@ def test_a_stopped_run_leaves_the_scene_as_it_was(shot, stop_before):
     generate = addon_part("operators.generate")
     scene, objects = shot
     before = snapshot()
-    job = generate.Job(scene, bpy.context.evaluated_depsgraph_get(), objects)
+    job = generate.Job(generate.steps(scene, bpy.context.evaluated_depsgraph_get(), objects))
     while job.stage != stop_before:
         assert job.advance(wait=1.0) is None
     job.stop()
     assert generate.running() is None
     assert snapshot() == before
+
+
+def test_one_run_at_a_time(shot):
+    generate = addon_part("operators.generate")
+    scene, objects = shot
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    job = generate.Job(generate.steps(scene, depsgraph, objects), "Generate")
+    try:
+        second = generate.steps(scene, depsgraph, objects)
+        with pytest.raises(ValueError, match="Generate is under way"):
+            generate.Job(second, "Inter-Reflections")
+        assert generate.running() is job
+        assert "under way" in generate.why_not_generate(bpy.context)  # the buttons say why
+    finally:
+        job.stop()
+    assert generate.running() is None and generate.why_not_generate(bpy.context) is None

@@ -331,3 +331,111 @@ def test_a_neighbour_is_placed_where_it_stands(interreflect, method):
     _, _, placed = run(interreflect, [plain, red], 2)
     assert side_redness(name) > before + 0.05
     assert placed[1].change > reports[1].change  # the plain sphere shows more of the red one
+
+
+def scene_state():
+    """What a stopped run must leave as it was: the datablocks, the objects' slots, materials,
+    pass indices and bounds, the maps' pixels, the render settings the passes change."""
+    render = bpy.context.scene.render
+    maps = {}
+    for image in bpy.data.images:
+        if image.name.startswith("VR Map"):
+            pixels = np.empty(len(image.pixels), np.float32)
+            image.pixels.foreach_get(pixels)
+            maps[image.name] = pixels.round(6).tobytes()
+    return (
+        # Blender's own "Render Result", which every render makes or reuses, aside
+        sorted(i.name for i in bpy.data.images if i.type != "RENDER_RESULT"),
+        sorted(m.name for m in bpy.data.materials),
+        sorted(g.name for g in bpy.data.node_groups),
+        [
+            (o.name, o.pass_index, [s.material.name if s.material else None for s in
+             o.material_slots], tuple(o.virtual_reflections.bounds))
+            for o in bpy.data.objects
+        ],
+        maps,
+        (render.use_border, render.film_transparent, render.filepath,
+         render.image_settings.file_format),
+    )  # fmt: skip
+
+
+def test_the_steps_give_the_blocking_runs_composite(interreflect):
+    make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    blocking, _, _ = run(interreflect, objects, 2)
+    generate = interreflect.generate
+    generate.remove_all()
+    scene = bpy.context.scene
+    pixels = generate.plate.pixels(scene)[0]
+    job = generate.Job(
+        interreflect.pass_steps(scene, bpy.context.evaluated_depsgraph_get(), objects, pixels, 2),
+        "Inter-Reflections",
+    )
+    stages, shares = [], []
+    while True:
+        stages.append(job.stage)
+        shares.append(job.done)
+        result = job.advance(wait=1.0)
+        if result is not None:
+            break
+    composite, _, reports = result
+    assert len(reports) == 2 and generate.running() is None
+    assert np.abs(composite - blocking).max() < 1e-5  # the same renders, the same maps
+    seen = list(dict.fromkeys(stages))
+    assert seen[0] == "Pass 1 of 2: reading the plate", seen
+    assert "Pass 1 of 2: rendering" in seen and seen[-1] == "Pass 2 of 2: rendering", seen
+    assert "Pass 2 of 2: gathering (Torus)" in seen, seen
+    assert shares == sorted(shares) and shares[-1] < 1.0  # the bar only grows
+
+
+@pytest.mark.parametrize("attached_before", [False, True])
+@pytest.mark.parametrize("stop_at", ["Pass 1 of 3: rendering", "Pass 2 of 3: gathering (Torus)",
+                                     "Pass 3 of 3: rendering"])  # fmt: skip
+def test_a_stopped_run_puts_the_scene_back(interreflect, stop_at, attached_before):
+    """Esc (the Job stopped, the snapshot restored): maps, material wiring, pass indices,
+    render settings and the add-on's images as before the run, whether the objects had a
+    reflection before (their map pixels come back) or not (taken off again)."""
+    from vr_addon_under_test.operators import reflection_snapshot
+
+    make_scene()
+    plate_image(colourful_plate())
+    objects = two_objects()
+    scene = bpy.context.scene
+    generate = interreflect.generate
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    if attached_before:
+        scene.virtual_reflections.combine = "REPLACE"
+        assert generate.generate(scene, depsgraph, objects).done == ["Sphere", "Torus"]
+    before = scene_state()
+    snapshot = reflection_snapshot.Snapshot(scene, objects)
+    pixels = generate.plate.pixels(scene)[0]
+    job = generate.Job(interreflect.pass_steps(scene, depsgraph, objects, pixels, 3), "Passes")
+    while job.stage != stop_at:
+        assert job.advance(wait=1.0) is None
+    assert scene_state() != before  # the run has changed something by now
+    job.stop()
+    snapshot.restore()
+    assert generate.running() is None
+    assert scene_state() == before
+
+
+def test_a_failed_run_from_the_operator_puts_the_scene_back(interreflect, monkeypatch):
+    make_scene()
+    plate_image(colourful_plate())
+    for obj in two_objects():
+        obj.select_set(True)
+    before = scene_state()
+    render, calls = interreflect._render, []
+
+    def failing(*args):
+        calls.append(args)
+        if len(calls) == 2:
+            raise RuntimeError("Error: out of memory\nmore lines")
+        return render(*args)
+
+    monkeypatch.setattr(interreflect, "_render", failing)
+    with pytest.raises(RuntimeError, match="out of memory$"):  # its report, one line
+        bpy.ops.vr.render_passes(passes=2)
+    assert len(calls) == 2  # it failed in pass 2, after pass 1 attached the maps
+    assert scene_state() == before

@@ -265,3 +265,153 @@ def test_generate_from_the_window_shows_its_stages_and_esc_stops_it(blender, tmp
     assert result["after_undo"] == result["before"], result
     assert result["drawn_running"] > 0, result
     assert "Traceback" not in r.stderr, r.stderr[-3000:]  # the panel drew every stage
+
+
+PASSES_SCRIPT = r"""
+import bpy, importlib, importlib.util, json, sys
+root = sys.argv[sys.argv.index("--") + 1]
+spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
+                                              submodule_search_locations=[root])
+addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
+spec.loader.exec_module(addon); addon.register()
+generate = importlib.import_module("vr_ui_addon.operators.generate")
+panel = importlib.import_module("vr_ui_addon.ui.panel")
+result = {"stages": [], "drawn_running": 0, "esc_stages": []}
+draw = panel.VR_PT_main.draw
+
+def recording_draw(self, context):  # the panel drawn while the passes run: its progress bar
+    draw(self, context)
+    result["drawn_running"] += generate.running() is not None
+
+panel.VR_PT_main.draw = recording_draw
+
+def snapshot():
+    render = bpy.context.scene.render
+    out = {
+        "images": sorted(i.name for i in bpy.data.images if i.type != "RENDER_RESULT"),
+        "materials": sorted(m.name for m in bpy.data.materials),
+        "groups": sorted(g.name for g in bpy.data.node_groups),
+        "render": [render.filepath, render.use_border, render.film_transparent,
+                   render.image_settings.file_format],
+    }
+    for name in ("Left", "Right"):
+        obj = bpy.data.objects[name]
+        out[name] = [obj.pass_index,
+                     [(s.link, s.material and s.material.name) for s in obj.material_slots]]
+    return out
+
+def invoke():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    with bpy.context.temp_override(window=win, area=area):
+        return sorted(bpy.ops.vr.render_passes("INVOKE_DEFAULT", passes=3))
+
+def guarded(step):
+    def run():
+        try:
+            return step()
+        except Exception as exc:
+            import traceback; traceback.print_exc()
+            print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
+            bpy.ops.wm.quit_blender()
+    return run
+
+def setup():
+    scene = bpy.context.scene
+    bpy.data.objects.remove(bpy.data.objects["Cube"])
+    for name, x in (("Left", -1.1), ("Right", 1.1)):
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.9, location=(x, 0, 0))
+        bpy.context.active_object.name = name
+    bpy.ops.object.select_all(action="DESELECT")
+    for name in ("Left", "Right"):
+        bpy.data.objects[name].select_set(True)
+    scene.virtual_reflections.plate_image = bpy.data.images.load(
+        root + "/sample_scenes/plates/courtyard.jpg")
+    scene.virtual_reflections.resolution = "256"
+    scene.virtual_reflections.combine = "REPLACE"
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.cycles.samples = 4
+    scene.cycles.use_denoising = False
+    bpy.ops.ed.undo_push(message="scene ready")
+    result["before"] = snapshot()
+    result["cancel_invoke"] = invoke()
+    bpy.app.timers.register(guarded(press_esc_in_pass_2), first_interval=0.01)
+
+def press_esc_in_pass_2():
+    job = generate.running()
+    if job is None:
+        result["error"] = "the run ended before pass 2"
+        print("RESULT=" + json.dumps(result), flush=True)
+        bpy.ops.wm.quit_blender()
+        return None
+    result["esc_stages"].append(job.stage)
+    if not job.stage.startswith("Pass 2 of 3"):
+        return 0.005
+    result["during"] = snapshot()  # pass 1 has attached the maps by now
+    bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
+    bpy.app.timers.register(guarded(after_cancel), first_interval=1.0)
+    return None
+
+def after_cancel():
+    result["running_after_esc"] = generate.running() is not None
+    result["after_esc"] = snapshot()
+    result["invoke"] = invoke()
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)  # drawn as it runs
+    bpy.app.timers.register(guarded(watch), first_interval=0.01)
+
+def watch():
+    job = generate.running()
+    if job is not None:
+        if not result["stages"] or result["stages"][-1] != job.stage:
+            result["stages"].append(job.stage)
+        return 0.005
+    result["after_run"] = snapshot()
+    result["report"] = bpy.context.scene.virtual_reflections.last_report
+    image = bpy.data.images.get("VR Inter-Reflections")
+    result["composite"] = list(image.size) if image is not None else None
+    print("RESULT=" + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+
+bpy.app.timers.register(guarded(setup), first_interval=0.5)
+"""
+
+
+def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(blender, tmp_path):
+    """The button's Render Inter-Reflections (INVOKE_DEFAULT) runs pass by pass with the window
+    drawing and the stage in the panel; Esc in pass 2 -- after pass 1 attached the maps and
+    rendered -- puts the scene back as it was (materials, maps, pass indices, render settings);
+    a full run ends with the composite image and the report."""
+    import shutil
+
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("xvfb-run is not installed (apt-get install xvfb)")
+    script = tmp_path / "passes.py"
+    script.write_text(PASSES_SCRIPT)
+    r = blender(
+        "--factory-startup", "--enable-event-simulate", "--python", script, "--", ROOT,
+        timeout=240, wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
+    )  # fmt: skip
+    line = next((x for x in r.stdout.splitlines() if x.startswith("RESULT=")), None)
+    assert line, r.stdout[-3000:] + r.stderr[-3000:]
+    result = json.loads(line[len("RESULT=") :])
+    assert "error" not in result, result
+    assert result["cancel_invoke"] == ["RUNNING_MODAL"]
+    assert result["during"] != result["before"], result  # the run had changed the scene
+    assert not result["running_after_esc"]
+    assert result["after_esc"] == result["before"], result
+    assert result["invoke"] == ["RUNNING_MODAL"]
+    stages = result["stages"]
+    for k in (1, 2, 3):
+        assert f"Pass {k} of 3: rendering" in stages, stages
+    assert stages.index("Pass 1 of 3: rendering") < stages.index("Pass 3 of 3: rendering")
+    assert result["composite"] == [160, 90], result
+    assert result["report"].startswith("3 pass(es)"), result["report"]
+    assert result["after_run"]["render"] == result["before"]["render"], result
+    assert result["after_run"]["Left"][1][0][0] == "OBJECT", result  # the maps stay on
+    assert result["drawn_running"] > 0, result
+    assert "Traceback" not in r.stderr, r.stderr[-3000:]
