@@ -49,14 +49,24 @@ def why_not_generate(context):
 
 @dataclass(frozen=True)
 class Step:
-    """One step of Generate (`steps`): ``stage`` says what runs now (the panel shows it),
-    ``done`` the share of the run done before it (0..1); ``work``, when given, is the step's
-    engine work: a bpy-free callable whose result the driver sends back into the steps, so
-    it may run off Blender's main thread while the window stays responsive (ops.py)."""
+    """One step of Generate (`steps`) or of another run: ``stage`` says what runs now (the
+    panel shows it), ``done`` the share of the run done before it (0..1); ``work``, when
+    given, is the step's engine work: a bpy-free callable whose result the driver sends back
+    into the steps, so it may run off Blender's main thread while the window stays
+    responsive (ops.py); ``render``, when given, (scene name, view layer name): a still to
+    render and write to the scene's output path (interreflect.py), which the window runs as
+    Blender's own render job (F12's: drawn as it renders, the window working meanwhile) and a
+    blocking driver in place; the driver sends None back."""
 
     stage: str
     done: float
     work: Callable | None = None
+    render: tuple | None = None
+
+
+class Stopped(Exception):
+    """A run from the window that stopped because the artist asked it to (Esc, or the render
+    cancelled): not an error."""
 
 
 def generate(scene, depsgraph, objects, progress=None, pixels=None) -> pipeline.Report:
@@ -85,6 +95,9 @@ def drive(run, progress=None):
         while True:
             if progress:
                 progress(step.done)
+            if step.render is not None:
+                scene, layer = step.render
+                bpy.ops.render.render(write_still=True, scene=scene, layer=layer)
             step = run.send(step.work() if step.work else None)
     except StopIteration as finished:
         return finished.value
@@ -101,7 +114,7 @@ def within(run, start, end, label=""):
             return finished.value
         while True:
             stage = f"{label}{step.stage[:1].lower()}{step.stage[1:]}" if label else step.stage
-            value = yield Step(stage, start + (end - start) * step.done, step.work)
+            value = yield Step(stage, start + (end - start) * step.done, step.work, step.render)
             try:
                 step = run.send(value)
             except StopIteration as finished:
@@ -205,9 +218,11 @@ def steps(scene, depsgraph, objects, pixels=None):
 class Job:
     """A run from Blender's window (ops.py) over a generator of `Step`s (`steps`,
     interreflect.pass_steps), one `Step` per `advance`: the steps that touch Blender on the
-    main thread, their engine work in a thread, so the window keeps drawing. One Job at a
-    time (`running`; the panel shows its stage). ValueError (one line) when it is made (the
-    first step's, or another run under way) or from `advance`."""
+    main thread, their engine work in a thread and their renders as Blender's render job, so
+    the window keeps drawing. One Job at a time (`running`; the panel shows its stage).
+    ValueError (one line) when it is made (the first step's, or another run under way) or
+    from `advance`; `Stopped` from `advance` when a render ends cancelled or after
+    `stop_requested` was set during it."""
 
     def __init__(self, run, name="Generate"):
         global _running
@@ -215,10 +230,13 @@ class Job:
             run.close()
             raise ValueError(f"{_running.name} is under way: wait for it, or press Esc to stop it")
         self.name = name
+        self.stop_requested = False  # set during a render: stop once it ends
         self._steps = run
         self.step = next(self._steps)
         self._thread = None
         self._outcome = None  # (result, exception) of the work in the thread
+        self._rendering = False
+        self._cancelled = False
         _running = self
 
     @property
@@ -229,14 +247,28 @@ class Job:
     def done(self) -> float:
         return self.step.done
 
+    @property
+    def rendering(self) -> bool:
+        """True while the step's render runs as Blender's render job."""
+        return self._rendering
+
     def advance(self, wait=0.05):
         """Do the next step, or give the thread up to ``wait`` seconds to finish the step's
-        work. Returns the pipeline.Report once the run is over, else None.
+        work, or see whether the step's render has ended. Returns the generator's value once
+        the run is over, else None.
 
         The wait matters: Blender's main thread holds Python's lock while it draws and waits
         for events, so a thread advances mostly while the main thread waits for it here
         (without it, the run took 2-3x as long; docs/benchmarks.md)."""
-        if self._thread is not None:
+        if self._rendering:
+            if bpy.app.is_job_running("RENDER"):
+                return None
+            self._end_render()
+            if self._cancelled or self.stop_requested:
+                self.stop()
+                raise Stopped(f"{self.name} stopped")
+            value = None
+        elif self._thread is not None:
             self._thread.join(wait)
             if self._thread.is_alive():
                 return None
@@ -250,6 +282,9 @@ class Job:
             self._thread.daemon = True  # Blender may quit meanwhile
             self._thread.start()
             return None
+        elif self.step.render is not None:
+            self._start_render(*self.step.render)
+            return None
         else:
             value = None
         try:
@@ -262,6 +297,34 @@ class Job:
             raise
         return None
 
+    def _start_render(self, scene, layer):
+        if bpy.app.is_job_running("RENDER"):
+            self.stop()
+            raise ValueError("Blender is rendering already: wait for that render to end")
+        self._cancelled = False
+        bpy.app.handlers.render_cancel.append(self._on_cancel)
+        self._rendering = True
+        try:
+            started = bpy.ops.render.render(
+                "INVOKE_DEFAULT", write_still=True, scene=scene, layer=layer
+            )
+        except BaseException:
+            self._end_render()
+            self.stop()
+            raise
+        if "CANCELLED" in started:
+            self._end_render()
+            self.stop()
+            raise ValueError("Blender could not start the render")
+
+    def _on_cancel(self, *_args):
+        self._cancelled = True
+
+    def _end_render(self):
+        self._rendering = False
+        while self._on_cancel in bpy.app.handlers.render_cancel:
+            bpy.app.handlers.render_cancel.remove(self._on_cancel)
+
     def _work(self, work):
         try:
             self._outcome = (work(), None)
@@ -269,9 +332,13 @@ class Job:
             self._outcome = (None, exc)
 
     def stop(self):
-        """End the run where it is (a thread still working finishes for nothing): the scene
-        changes only in the last step, so it is as it was."""
+        """End the run where it is (a thread still working finishes for nothing; a render
+        job under way is left to end): the generator is closed, so what it restores on
+        closing is restored (interreflect.pass_steps: the render settings). Generate changes
+        the scene only in its last step, so it is as it was."""
         global _running
+        if self._rendering:
+            self._end_render()
         self._steps.close()
         if _running is self:
             _running = None

@@ -34,7 +34,10 @@ and put over the full plate -- so later passes keep the plate's detail; the comp
 module returns are at the render's size, over the plate scaled down (nearest), as the batch
 entry composites. Everything is scene-linear Rec.709 float32.
 
-Rendering: the render is written as a multilayer EXR (Combined and the object index of the
+Rendering: each pass ends in a render step (`generate.Step` with ``render``): from the
+window Blender's own render job (as F12: the render view fills in, the window works, Esc or
+the job's cancel stops the run once the render ends), else a blocking render. The render is
+written as a multilayer EXR (Combined and the object index of the
 depsgraph's view layer), uncompressed, into a temporary folder and read with NumPy alone
 (the engine's plainexr.py: no OpenImageIO, which some Blender packages lack). Everything
 changed for that -- output format and path, border, compositing, film, persistent data (the
@@ -49,7 +52,6 @@ import tempfile
 import time
 from dataclasses import dataclass
 
-import bpy
 import numpy as np
 
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
@@ -190,8 +192,12 @@ def pass_steps(
         if not done:
             raise ValueError("no reflection generated: " + "; ".join(generated.warnings))
         with _render_state(scene, layer, path, done) as ids:
-            yield generate.Step(label(1) + "rendering", 0.6 / limit)
-            rgba, index, render_seconds = _render(scene, layer, path)
+            rendered = time.perf_counter()
+            yield generate.Step(
+                label(1) + "rendering", 0.6 / limit, render=(scene.name, layer.name)
+            )
+            rgba, index = _read_render(scene, layer, path)
+            render_seconds = time.perf_counter() - rendered
             h, w = rgba.shape[:2]
             plate_small = resize_nearest(plate, h, w)
             composite = over(rgba, plate_small)
@@ -247,8 +253,12 @@ def pass_steps(
                         _place_neighbours(scene, depsgraph, obj, others, source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started
-                yield generate.Step(label(k) + "rendering", (k - 0.4) / limit)
-                new, _, render_seconds = _render(scene, layer, path)
+                rendered = time.perf_counter()
+                yield generate.Step(
+                    label(k) + "rendering", (k - 0.4) / limit, render=(scene.name, layer.name)
+                )
+                new, _ = _read_render(scene, layer, path)
+                render_seconds = time.perf_counter() - rendered
                 rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
                 previous, composite = composite, over(rgba, plate_small)
                 reports.append(
@@ -435,13 +445,14 @@ def _set_border(render, box, size):
     render.use_border = True
 
 
-def _render(scene, layer, path):
-    """Render the layer into the multilayer EXR at ``path``; returns ((h, w, 4) float32 RGBA
-    premultiplied, (h, w) int32 object index, seconds of the render call)."""
-    started = time.perf_counter()
-    bpy.ops.render.render(write_still=True, scene=scene.name, layer=layer.name)
-    seconds = time.perf_counter() - started
+def _read_render(scene, layer, path):
+    """The render of the layer that the step before wrote as the multilayer EXR at ``path``
+    (a `generate.Step` with ``render``: Blender's render job from the window, a blocking render
+    otherwise); returns ((h, w, 4) float32 RGBA premultiplied, (h, w) int32 object index)."""
+    if not os.path.isfile(path):
+        raise ValueError("the render wrote no image: was it stopped?")
     channels = read_channels(path)
+    os.remove(path)  # the next pass's render must not be mistaken for this one
     names = [f"{layer.name}.Combined.{c}" for c in "RGBA"]
     missing = [n for n in names if n not in channels]
     if missing:
@@ -453,7 +464,7 @@ def _render(scene, layer, path):
             f"{scene.render.engine} wrote no object index pass: inter-reflections need Cycles"
         )
     rgba = np.stack([channels[n] for n in names], axis=-1)
-    return rgba, np.rint(index).astype(np.int32), seconds
+    return rgba, np.rint(index).astype(np.int32)
 
 
 # --- pixels ------------------------------------------------------------------------------------

@@ -58,15 +58,19 @@ class _Stepped:
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        if event.type == "ESC":
-            self._end(context)
-            self._undo(context)
-            self.report({"INFO"}, f"{self._job.name} stopped: the scene is as it was")
-            return {"CANCELLED"}
+        if event.type == "ESC" and event.value == "PRESS":
+            if self._job.rendering:  # Blender's render job: stop once it ends
+                self._job.stop_requested = True
+                return {"PASS_THROUGH"}
+            return self._stopped(context)
         if event.type != "TIMER":
+            if self._job.rendering:  # as during F12: the window works while Blender renders
+                return {"PASS_THROUGH"}
             return {"PASS_THROUGH"} if event.type in _NAVIGATION else {"RUNNING_MODAL"}
         try:
             result = self._job.advance()
+        except generate.Stopped:
+            return self._stopped(context)
         except Exception as exc:  # ValueError: bad input; else a bug, one line all the same
             self._end(context)
             self._undo(context)
@@ -80,6 +84,12 @@ class _Stepped:
             return {"RUNNING_MODAL"}
         self._end(context)
         return self._finish(context, result)
+
+    def _stopped(self, context):
+        self._end(context)
+        self._undo(context)
+        self.report({"INFO"}, f"{self._job.name} stopped: the scene is as it was")
+        return {"CANCELLED"}
 
     def cancel(self, context):  # Blender closes the window or loads a file meanwhile
         self._end(context)
@@ -171,6 +181,10 @@ class VR_OT_remove(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
+        job = generate.running()
+        if job is not None:
+            cls.poll_message_set(f"{job.name} is under way: wait for it, or press Esc to stop it")
+            return False
         if not generate.anything_attached():
             cls.poll_message_set("Nothing to remove: no object has a virtual reflection")
             return False
@@ -305,6 +319,9 @@ class VR_OT_render_passes(_Stepped, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
+        if bpy.app.is_job_running("RENDER"):
+            cls.poll_message_set("Blender is rendering: wait for the render to end")
+            return False
         return _poll_generate(cls, context)
 
     def _arguments(self, context):

@@ -426,15 +426,15 @@ def test_a_failed_run_from_the_operator_puts_the_scene_back(interreflect, monkey
     for obj in two_objects():
         obj.select_set(True)
     before = scene_state()
-    render, calls = interreflect._render, []
+    read, calls = interreflect._read_render, []
 
     def failing(*args):
         calls.append(args)
         if len(calls) == 2:
             raise RuntimeError("Error: out of memory\nmore lines")
-        return render(*args)
+        return read(*args)
 
-    monkeypatch.setattr(interreflect, "_render", failing)
+    monkeypatch.setattr(interreflect, "_read_render", failing)
     with pytest.raises(RuntimeError, match="out of memory$"):  # its report, one line
         bpy.ops.vr.render_passes(passes=2)
     assert len(calls) == 2  # it failed in pass 2, after pass 1 attached the maps

@@ -276,7 +276,7 @@ addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
 spec.loader.exec_module(addon); addon.register()
 generate = importlib.import_module("vr_ui_addon.operators.generate")
 panel = importlib.import_module("vr_ui_addon.ui.panel")
-result = {"stages": [], "drawn_running": 0, "esc_stages": []}
+result = {"stages": [], "drawn_running": 0, "render_job_seen": False}
 draw = panel.VR_PT_main.draw
 
 def recording_draw(self, context):  # the panel drawn while the passes run: its progress bar
@@ -316,6 +316,10 @@ def guarded(step):
             bpy.ops.wm.quit_blender()
     return run
 
+def finish():
+    print("RESULT=" + json.dumps(result), flush=True)
+    bpy.ops.wm.quit_blender()
+
 def setup():
     scene = bpy.context.scene
     bpy.data.objects.remove(bpy.data.objects["Cube"])
@@ -335,27 +339,35 @@ def setup():
     scene.cycles.use_denoising = False
     bpy.ops.ed.undo_push(message="scene ready")
     result["before"] = snapshot()
-    result["cancel_invoke"] = invoke()
-    bpy.app.timers.register(guarded(press_esc_in_pass_2), first_interval=0.01)
+    stop_in("Pass 2 of 3: gathering (Right)", "esc_gathering", then=lambda: stop_in(
+        "Pass 2 of 3: rendering", "esc_rendering", then=full_run))
 
-def press_esc_in_pass_2():
-    job = generate.running()
-    if job is None:
-        result["error"] = "the run ended before pass 2"
-        print("RESULT=" + json.dumps(result), flush=True)
-        bpy.ops.wm.quit_blender()
+def stop_in(stage, key, then):
+    # Invoke, press Esc when the run reaches `stage`, record the scene once it has stopped.
+    result[key] = {"invoke": invoke(), "seen": []}
+    def wait_for_stage():
+        job = generate.running()
+        if job is None:
+            result[key]["error"] = "the run ended before " + stage
+            return finish()
+        if not result[key]["seen"] or result[key]["seen"][-1] != job.stage:
+            result[key]["seen"].append(job.stage)
+        if job.stage != stage or (stage.endswith("rendering") and not job.rendering):
+            return 0.002
+        result[key]["during"] = snapshot()  # pass 1 has attached the maps by now
+        result[key]["rendering_at_esc"] = job.rendering
+        bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
+        bpy.app.timers.register(guarded(wait_for_stop), first_interval=0.05)
         return None
-    result["esc_stages"].append(job.stage)
-    if not job.stage.startswith("Pass 2 of 3"):
-        return 0.005
-    result["during"] = snapshot()  # pass 1 has attached the maps by now
-    bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
-    bpy.app.timers.register(guarded(after_cancel), first_interval=1.0)
-    return None
+    def wait_for_stop():
+        if generate.running() is not None:  # a render under way ends first
+            return 0.05
+        result[key]["after"] = snapshot()
+        bpy.app.timers.register(guarded(then), first_interval=0.2)
+        return None
+    bpy.app.timers.register(guarded(wait_for_stage), first_interval=0.002)
 
-def after_cancel():
-    result["running_after_esc"] = generate.running() is not None
-    result["after_esc"] = snapshot()
+def full_run():
     result["invoke"] = invoke()
     win = bpy.context.window_manager.windows[0]
     area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
@@ -367,6 +379,7 @@ def after_cancel():
 def watch():
     job = generate.running()
     if job is not None:
+        result["render_job_seen"] |= job.rendering and bpy.app.is_job_running("RENDER")
         if not result["stages"] or result["stages"][-1] != job.stage:
             result["stages"].append(job.stage)
         return 0.005
@@ -374,8 +387,7 @@ def watch():
     result["report"] = bpy.context.scene.virtual_reflections.last_report
     image = bpy.data.images.get("VR Inter-Reflections")
     result["composite"] = list(image.size) if image is not None else None
-    print("RESULT=" + json.dumps(result), flush=True)
-    bpy.ops.wm.quit_blender()
+    finish()
 
 bpy.app.timers.register(guarded(setup), first_interval=0.5)
 """
@@ -383,9 +395,11 @@ bpy.app.timers.register(guarded(setup), first_interval=0.5)
 
 def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(blender, tmp_path):
     """The button's Render Inter-Reflections (INVOKE_DEFAULT) runs pass by pass with the window
-    drawing and the stage in the panel; Esc in pass 2 -- after pass 1 attached the maps and
-    rendered -- puts the scene back as it was (materials, maps, pass indices, render settings);
-    a full run ends with the composite image and the report."""
+    drawing, the stage in the panel and each render as Blender's render job (as F12). Esc in
+    pass 2 -- after pass 1 attached the maps and rendered -- while the maps are built, and
+    again while Blender renders (the run stops once that render ends), puts the scene back as
+    it was (materials, maps, pass indices, render settings); a full run ends with the
+    composite image and the report."""
     import shutil
 
     if shutil.which("xvfb-run") is None:
@@ -394,21 +408,25 @@ def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(
     script.write_text(PASSES_SCRIPT)
     r = blender(
         "--factory-startup", "--enable-event-simulate", "--python", script, "--", ROOT,
-        timeout=240, wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
+        timeout=300, wrap=["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"],
     )  # fmt: skip
     line = next((x for x in r.stdout.splitlines() if x.startswith("RESULT=")), None)
     assert line, r.stdout[-3000:] + r.stderr[-3000:]
     result = json.loads(line[len("RESULT=") :])
     assert "error" not in result, result
-    assert result["cancel_invoke"] == ["RUNNING_MODAL"]
-    assert result["during"] != result["before"], result  # the run had changed the scene
-    assert not result["running_after_esc"]
-    assert result["after_esc"] == result["before"], result
+    for key, rendering in (("esc_gathering", False), ("esc_rendering", True)):
+        stopped = result[key]
+        assert "error" not in stopped, stopped
+        assert stopped["invoke"] == ["RUNNING_MODAL"], stopped
+        assert stopped["rendering_at_esc"] is rendering, stopped
+        assert stopped["during"] != result["before"], stopped  # the run had changed the scene
+        assert stopped["after"] == result["before"], (key, stopped, result["before"])
     assert result["invoke"] == ["RUNNING_MODAL"]
     stages = result["stages"]
     for k in (1, 2, 3):
         assert f"Pass {k} of 3: rendering" in stages, stages
     assert stages.index("Pass 1 of 3: rendering") < stages.index("Pass 3 of 3: rendering")
+    assert result["render_job_seen"], result  # Blender's render job, not a blocking render
     assert result["composite"] == [160, 90], result
     assert result["report"].startswith("3 pass(es)"), result["report"]
     assert result["after_run"]["render"] == result["before"]["render"], result
