@@ -15,10 +15,11 @@ import numpy as np
 
 from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
-from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
+from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
 from .params import Params
 from .table import LookupTable, lookup_table
+from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
 
@@ -89,7 +90,12 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             fill_values(mine, side, lookup, out[texels])
 
         for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
-    for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):
+    if table.trilinear is not None:  # every texel, the groups written over it
+        shapes = level_shapes(seg.height, seg.width, table.levels)
+        offsets = level_offsets(shapes, first)
+        gather_trilinear(table.trilinear, pyramid, shapes, offsets, out)
+    main = () if table.index is None else ((table.texels, table.index, table.weight),)
+    for texels, index, weight in (*main, *table.groups):
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))
 

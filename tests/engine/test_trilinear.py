@@ -1,0 +1,103 @@
+"""The compact trilinear samples (trilinear.py) and the optional OpenCV back end (opencv.py):
+the NumPy path reads what a plain trilinear lookup reads; OpenCV, when installed, gives the
+same map to within its 1/32-pixel weights; VR_GATHER=numpy forces NumPy."""
+
+import numpy as np
+import pytest
+
+from virtual_reflections import opencv
+from virtual_reflections.mipmap import build_pyramid, level_offsets, level_shapes, level_view
+from virtual_reflections.trilinear import ROW, gather, trilinear_samples
+
+H, W = 45, 70
+needs_cv2 = pytest.mark.skipif(opencv.cv2() is None, reason="OpenCV not installed (optional)")
+
+
+def _plate(seed=3, smooth=False):
+    rng = np.random.default_rng(seed)
+    if smooth:
+        y, x = np.mgrid[0:H, 0:W].astype(np.float32)
+        return np.stack([np.sin(x / 7) * np.cos(y / 5), x / W, y / H], -1).astype(np.float32)
+    return rng.random((H, W, 3), dtype=np.float32)
+
+
+def _samples(n=3000, seed=5):
+    rng = np.random.default_rng(seed)
+    px = (rng.random(n) * W).astype(np.float32)
+    py = (rng.random(n) * H).astype(np.float32)
+    top = len(level_shapes(H, W)) - 1
+    lod = (rng.random(n) * top).astype(np.float32)
+    lod[:50] = 0.0  # exact levels and the top
+    lod[50:100] = np.float32(top)
+    return px, py, lod
+
+
+def _reference(flat, shapes, px, py, lod):
+    """A plain trilinear lookup: bilinear on floor(lod) and the next level, edges repeated."""
+    top = len(shapes) - 1
+    out = np.zeros((px.size, 3), np.float64)
+    for t in range(px.size):
+        lo = min(int(lod[t]), max(top - 1, 0))
+        up = min(max(float(lod[t]) - lo, 0.0), 1.0)
+        for level, share in ((lo, 1 - up), (min(lo + 1, top), up)):
+            img = level_view(flat, shapes, level).astype(np.float64)
+            h, w = shapes[level]
+            u, v = px[t] / 2**level - 0.5, py[t] / 2**level - 0.5
+            i, j = int(np.floor(u)), int(np.floor(v))
+            a, b = u - i, v - j
+            for di, dj, wt in ((0, 0, (1 - a) * (1 - b)), (1, 0, a * (1 - b)),
+                               (0, 1, (1 - a) * b), (1, 1, a * b)):  # fmt: skip
+                x = min(max(i + di, 0), w - 1)
+                y = min(max(j + dj, 0), h - 1)
+                out[t] += share * wt * img[y, x]
+    return out
+
+
+def _read(plate, px, py, lod, use):
+    shapes = level_shapes(H, W)
+    flat = build_pyramid(plate)
+    samples = trilinear_samples(px, py, lod, len(shapes) - 1)
+    out = np.empty((px.size, 3), np.float32)
+    gather(samples, flat, shapes, level_offsets(shapes), out, use=use)
+    return out, flat, shapes, samples
+
+
+def test_compact_samples_are_14_bytes_and_grouped_by_level():
+    px, py, lod = _samples()
+    _, _, _, s = _read(_plate(), px, py, lod, "numpy")
+    nbytes = s.x.nbytes + s.y.nbytes + s.upper.nbytes + s.rank.nbytes
+    assert nbytes / px.size < 16
+    assert list(s.levels) == sorted(s.levels) and all(b % ROW == 0 for b in s.starts)
+    assert np.unique(s.rank).size == px.size  # every texel has its own row
+
+
+def test_numpy_path_is_a_trilinear_lookup():
+    px, py, lod = _samples(1500)
+    got, flat, shapes, _ = _read(_plate(), px, py, lod, "numpy")
+    expected = _reference(flat, shapes, px, py, lod)
+    # The next level's share is stored as float16: up to 2^-11 of the levels' difference.
+    assert np.abs(got - expected).max() < 1e-3
+    assert np.abs(got - expected).mean() < 1e-4
+
+
+@needs_cv2
+@pytest.mark.parametrize("smooth", [False, True])
+def test_opencv_path_matches_numpy_within_its_weight_rounding(smooth):
+    px, py, lod = _samples()
+    plate = _plate(smooth=smooth)
+    fast, *_ = _read(plate, px, py, lod, "opencv")
+    ref, *_ = _read(plate, px, py, lod, "numpy")
+    diff = np.abs(fast - ref)
+    # OpenCV rounds bilinear weights to 1/32: at most 1/64 of the largest step between
+    # neighbours per axis (here <= 1: values in [0, 1]), 1/32 for the two axes.
+    assert diff.max() <= 1 / 32 + 1e-6
+    psnr = 10 * np.log10(1.0 / np.mean(diff.astype(np.float64) ** 2))
+    print(f"opencv vs numpy: max {diff.max():.2e}, PSNR {psnr:.1f} dB")
+    assert psnr > 45, psnr
+
+
+def test_vr_gather_numpy_forces_the_numpy_path(monkeypatch):
+    monkeypatch.setenv("VR_GATHER", "numpy")
+    assert opencv.backend() == "numpy"
+    monkeypatch.setenv("VR_GATHER", "")
+    assert opencv.backend() == ("opencv" if opencv.cv2() is not None else "numpy")
