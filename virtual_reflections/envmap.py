@@ -19,6 +19,7 @@ from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyra
 from .parallel import for_blocks
 from .params import Params
 from .table import LookupTable, lookup_table
+from .supersample import gather as gather_supersample
 from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
@@ -89,13 +90,20 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
             fill_values(mine, side, lookup, out[texels])
 
-        for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
+        if steps.size == table.shape[0]:  # one step per row: one matrix product
+            fill_values(steps, side, lookup, out)
+        else:
+            for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
     if table.trilinear is not None:  # every texel, the groups written over it
         shapes = level_shapes(seg.height, seg.width, table.levels)
         offsets = level_offsets(shapes, first)
         gather_trilinear(table.trilinear, pyramid, shapes, offsets, out)
-    main = () if table.index is None else ((table.texels, table.index, table.weight),)
-    for texels, index, weight in (*main, *table.groups):
+    if table.index is not None:
+        _gather(source, table.texels, table.index, table.weight, out)
+    if table.supersample is not None:
+        shapes = level_shapes(seg.height, seg.width, table.levels)
+        gather_supersample(table.supersample, source, shapes, level_offsets(shapes, first), out)
+    for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))
 

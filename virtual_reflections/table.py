@@ -43,6 +43,7 @@ from .parallel import CHUNK, for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
+from .supersample import Supersample, supersamples
 from .trilinear import Trilinear, trilinear_samples
 
 
@@ -75,6 +76,9 @@ class LookupTable:
     # The paper's method: every texel a trilinear sample, stored compactly (trilinear.py;
     # index and weight are None), written before the groups.
     trilinear: Trilinear | None = None
+    # The camera view's seen texels: the mean of n x n bilinear samples each, stored compactly
+    # (supersample.py), written after index/weight's texels, before the groups.
+    supersample: Supersample | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -337,11 +341,10 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             near_fill = all_index[near], all_weight[near]
         near_index[:, 8:] = near_fill[0]
         near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
-    if seen.size:
-        seen_index, seen_weight = camera_view.supersample_taps(
-            layout, size, seen, intrinsics, seen_level, shapes, offsets
-        )
-        groups.append((seen, seen_index, seen_weight))
+    seen_samples = None
+    if seen.size:  # compact: 8 bytes a sample (supersample.py)
+        positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
+        seen_samples = supersamples(seen, positions, seen_level)
     main = (near, near_index, near_weight)
     if filled and fill_texels is None:  # the fill's taps first, the others written over them
         main, groups = (None, all_index, all_weight), [main, *groups]
@@ -361,6 +364,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         groups=tuple(groups),
         fill=fill,
         fill_texels=fill_texels,
+        supersample=seen_samples,
     )
 
 
@@ -445,6 +449,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         return texels[keep], idx[keep], wts[keep]
 
     groups = [without(base.texels, base.index, base.weight), *(without(*g) for g in base.groups)]
+    seen = None if base.supersample is None else base.supersample.without(taken)
     full = share >= 1.0
     groups.append((ids[full], index[full], weight[full]))
     part = np.flatnonzero(~full)
@@ -479,6 +484,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         index=near[1],
         weight=near[2],
         groups=tuple(g for g in rest if g[0].size),
+        supersample=seen if seen is not None and seen.texels.size else None,
     )
 
 

@@ -30,6 +30,7 @@ from .parallel import for_blocks
 
 ROW = 256  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
 BLOCK = 8192  # texels per block of NumPy work: its taps stay in the cache
+REMAP_ROWS = 16384  # rows of ROW texels per OpenCV remap (it takes fewer than 2^15 rows)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,8 +92,9 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use: str | None = N
         a, b = samples.starts[r], samples.starts[r + 1]
         nxt = min(level + 1, top)
         if use == "opencv":
-            _run_opencv(samples, a, b, _level(source, shapes, offsets, level),
-                        _level(source, shapes, offsets, nxt), nxt > level, values)  # fmt: skip
+            images = _level(source, shapes, offsets, level), _level(source, shapes, offsets, nxt)
+            for c in range(a, b, REMAP_ROWS * ROW):  # OpenCV remaps fewer than 2^15 rows
+                _run_opencv(samples, c, min(c + REMAP_ROWS * ROW, b), *images, nxt > level, values)
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
