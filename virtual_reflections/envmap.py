@@ -101,8 +101,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     if table.index is not None:
         _gather(source, table.texels, table.index, table.weight, out)
     if table.supersample is not None:
-        shapes = level_shapes(seg.height, seg.width, table.levels)
-        gather_supersample(table.supersample, source, shapes, level_offsets(shapes, first), out)
+        gather_supersample(table.supersample, source, out)
     for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))

@@ -342,9 +342,9 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         near_index[:, 8:] = near_fill[0]
         near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
     seen_samples = None
-    if seen.size:  # compact: 8 bytes a sample (supersample.py)
+    if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
         positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
-        seen_samples = supersamples(seen, positions, seen_level)
+        seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
     main = (near, near_index, near_weight)
     if filled and fill_texels is None:  # the fill's taps first, the others written over them
         main, groups = (None, all_index, all_weight), [main, *groups]

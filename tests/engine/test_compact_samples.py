@@ -1,4 +1,4 @@
-"""The compact trilinear samples (trilinear.py) and the optional OpenCV back end (opencv.py):
+"""The compact samples (trilinear.py, supersample.py) and the optional OpenCV back end (opencv.py):
 the NumPy path reads what a plain trilinear lookup reads; OpenCV, when installed, gives the
 same map to within its 1/32-pixel weights; VR_GATHER=numpy forces NumPy."""
 
@@ -101,3 +101,32 @@ def test_vr_gather_numpy_forces_the_numpy_path(monkeypatch):
     assert opencv.backend() == "numpy"
     monkeypatch.setenv("VR_GATHER", "")
     assert opencv.backend() == ("opencv" if opencv.cv2() is not None else "numpy")
+
+
+def test_compact_supersamples_read_what_their_taps_read():
+    """supersample.py: the same means as camera_view.mean_taps' rows and weights (positions
+    beyond a level's edge included), at 8 bytes a sample instead of 32."""
+    from virtual_reflections.camera_view import mean_taps
+    from virtual_reflections.supersample import gather as gather_supersample
+    from virtual_reflections.supersample import supersamples
+
+    rng = np.random.default_rng(9)
+    shapes = level_shapes(H, W)
+    offsets = level_offsets(shapes)
+    flat = build_pyramid(_plate())
+    count, k = 700, 16
+    level = rng.integers(0, 4, count)
+    positions = [((rng.random(count) * (W + 6)), (rng.random(count) * (H + 6))) for _ in range(k)]
+    texels = rng.permutation(5000)[:count]
+    index, weight = mean_taps(positions, level, shapes, offsets)
+    expected = np.einsum("tkc,tk->tc", flat[index].astype(np.float64), weight)
+    samples = supersamples(texels, positions, level, shapes, offsets)
+    out = np.zeros((5000, 3), np.float32)
+    gather_supersample(samples, flat, out)
+    assert np.abs(out[texels] - expected).max() < 2e-5
+    assert (samples.base.nbytes + samples.fx.nbytes + samples.fy.nbytes) / (count * k) == 8
+    drop = np.zeros(5000, bool)
+    drop[texels[:100]] = True
+    out2 = np.zeros((5000, 3), np.float32)
+    gather_supersample(samples.without(drop), flat, out2)
+    assert not out2[texels[:100]].any() and np.array_equal(out2[texels[100:]], out[texels[100:]])
