@@ -103,22 +103,27 @@ def gather(samples: Supersample, source, out) -> None:
     share = np.float32(1.0 / k)
     for r, stride in enumerate(samples.strides):
         a = samples.starts[r]
-        corners = np.array([0, 1, stride, stride + 1], np.int32)
+        corners = (0, 1, stride, stride + 1)
 
         def block(c, d, a=a, corners=corners):
             c, d = a + c, a + d
             n = d - c
-            index = samples.base[c:d, :, None] + corners  # (n, K, 4)
+            # Corner-major (n, 4, K): every step works on whole (n, K) slabs.
+            index = np.empty((n, 4, k), np.int32)
+            base = samples.base[c:d]
+            for j in range(4):
+                np.add(base, corners[j], out=index[:, j])
             ax = samples.fx[c:d] * scale
             ay = samples.fy[c:d] * scale
             bx, by = 1 - ax, (1 - ay) * share
             ay *= share
-            weight = np.empty((n, k, 4), np.float32)
-            np.multiply(by, bx, out=weight[..., 0])
-            np.multiply(by, ax, out=weight[..., 1])
-            np.multiply(ay, bx, out=weight[..., 2])
-            np.multiply(ay, ax, out=weight[..., 3])
+            weight = np.empty((n, 1, 4 * k), np.float32)
+            w = weight.reshape(n, 4, k)
+            np.multiply(by, bx, out=w[:, 0])
+            np.multiply(by, ax, out=w[:, 1])
+            np.multiply(ay, bx, out=w[:, 2])
+            np.multiply(ay, ax, out=w[:, 3])
             taps = np.take(source, index.reshape(n, -1), axis=0, mode="clip")
-            out[samples.texels[c:d]] = np.einsum("tkc,tk->tc", taps, weight.reshape(n, -1))
+            out[samples.texels[c:d]] = np.matmul(weight, taps).reshape(n, 3)
 
         for_blocks(block, samples.starts[r + 1] - a, min_rows=BLOCK, max_rows=BLOCK)

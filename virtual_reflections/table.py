@@ -403,7 +403,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         first_level=first,
         index=None,
         weight=None,
-        trilinear=trilinear_samples(px, py, lod, top),
+        trilinear=trilinear_samples(px, py, lod, top, shape),
     )
 
 

@@ -6,7 +6,7 @@ position on level L (x, y: float32, in that level's bordered pixel coordinates, 
 centres at integers, see mipmap.py) and the share (float16): on level L + 1 the position is
 (x / 2 + 1/4, y / 2 + 1/4). Texels are grouped by L (runs, each padded to a whole number of
 ROW texels), so within a run the level, its row length and its offset in the flat pyramid
-are numbers, not arrays; `rank` (int32) takes the runs' results back to map order. With
+are numbers, not arrays; `rank` (two int16) takes the runs' results back to map order. With
 the rank: 14 bytes per texel.
 
 Two back ends give the same samples (`gather`):
@@ -14,7 +14,8 @@ Two back ends give the same samples (`gather`):
 - NumPy (always there): per block of a run, the 8 rows and weights are worked out and read
   with one `take` and a weighted sum — the arithmetic of `table._bilinear`.
 - OpenCV's `remap` (optional, used when `cv2` imports; VR_GATHER=numpy forces NumPy): each
-  run is two remaps (levels L and L + 1) and a blend. Its bilinear weights are rounded to
+  run is two remaps (levels L and L + 1) and a blend (`blendLinear`), and the way back to map
+  order one nearest-pixel remap. Its bilinear weights are rounded to
   1/32 of a pixel (INTER_BITS = 5), so it differs from NumPy's by up to 1/64 of the step
   between neighbouring pixels (tests/engine/test_trilinear.py measures it).
 """
@@ -28,9 +29,9 @@ import numpy as np
 from .opencv import backend, cv2
 from .parallel import for_blocks
 
-ROW = 256  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
+ROW = 2048  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
+MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
 BLOCK = 8192  # texels per block of NumPy work: its taps stay in the cache
-REMAP_ROWS = 16384  # rows of ROW texels per OpenCV remap (it takes fewer than 2^15 rows)
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,7 +40,9 @@ class Trilinear:
 
     levels: the lower level of each run; starts: run r is rows starts[r] .. starts[r + 1] - 1.
     x, y: (n,) float32 positions on the run's level (bordered pixel coordinates).
-    upper: (n,) float16, the next level's share. rank: (T,) int32, each texel's row.
+    upper: (n,) float16, the next level's share.
+    rank: (H, W, 2) int16, each texel's row of the runs as (row % ROW, row // ROW): the
+    runs' results seen as an image ROW wide, a nearest-pixel map back to map order.
     """
 
     levels: tuple
@@ -50,14 +53,14 @@ class Trilinear:
     rank: np.ndarray
 
 
-def trilinear_samples(px, py, lod, top: int) -> Trilinear:
+def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
     mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
-    next level, blended by the fraction (as `table._bilinear`)."""
+    next level, blended by the fraction (as `table._bilinear`); `shape`: the map's (H, W)."""
     lo = np.minimum(lod.astype(np.int32), max(top - 1, 0)).astype(np.uint8)
     counts = np.bincount(lo, minlength=top + 1)
     order = np.argsort(lo, kind="stable")  # map order within a level: reads stay local
-    levels, starts, rank = [], [0], np.empty(lo.size, np.int32)
+    levels, starts, rank = [], [0], np.empty((lo.size, 2), np.int16)
     padded = sum(-(-int(c) // ROW) * ROW for c in counts)
     x = np.ones(padded, np.float32)  # padding: pixel (0, 0) of the level, share 0
     y = np.ones(padded, np.float32)
@@ -74,9 +77,14 @@ def trilinear_samples(px, py, lod, top: int) -> Trilinear:
         x[a : a + count] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
         y[a : a + count] = py[ids] * scale + np.float32(0.5)
         upper[a : a + count] = np.clip(lod[ids] - np.float32(level), 0.0, 1.0)
-        rank[ids] = np.arange(a, a + count, dtype=np.int32)
+        rows = np.arange(a, a + count, dtype=np.int64)
+        rank[ids, 0] = rows % ROW
+        rank[ids, 1] = rows // ROW
         levels.append(level)
         starts.append(a + -(-count // ROW) * ROW)
+    if starts[-1] > ROW * MAX_ROWS:
+        raise ValueError(f"{lo.size} texels: more than this table's compact form holds")
+    rank = rank.reshape(tuple(shape) + (2,))
     for array in (x, y, upper, rank):
         array.flags.writeable = False
     return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank)
@@ -93,18 +101,26 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use: str | None = N
         nxt = min(level + 1, top)
         if use == "opencv":
             images = _level(source, shapes, offsets, level), _level(source, shapes, offsets, nxt)
-            for c in range(a, b, REMAP_ROWS * ROW):  # OpenCV remaps fewer than 2^15 rows
-                _run_opencv(samples, c, min(c + REMAP_ROWS * ROW, b), *images, nxt > level, values)
+            _run_opencv(samples, a, b, *images, nxt > level, values)
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
             _run_numpy(samples, a, b, stride, start, nxt > level, source, values)
-    count = samples.rank.size
+    height, width = samples.rank.shape[:2]
+    if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
+        cv = cv2()
+        image = values.reshape(-1, ROW, 3)
+        cv.remap(image, samples.rank, None, cv.INTER_NEAREST, dst=out.reshape(height, width, 3))
+        return
+    rank = samples.rank.reshape(-1, 2)
 
     def back(a, b):  # the runs' rows -> map order
-        np.take(values, samples.rank[a:b], axis=0, out=out[a:b])
+        rows = rank[a:b, 1].astype(np.int32)
+        rows *= ROW
+        rows += rank[a:b, 0]
+        np.take(values, rows, axis=0, out=out[a:b])
 
-    for_blocks(back, count)
+    for_blocks(back, rank.shape[0], max_rows=BLOCK)
 
 
 def _level(source, shapes, offsets, level):
@@ -115,38 +131,36 @@ def _level(source, shapes, offsets, level):
 def _run_numpy(samples, a, b, stride, start, halve, source, values) -> None:
     """Rows a .. b - 1 of one run, in blocks over the cores: 8 taps each, one take, a sum."""
 
-    def block(c, d):
+    def block(c, d):  # taps plane by plane (8, n): every step works on whole (n,) rows
         n = d - c
-        index = np.empty((n, 2, 4), np.int32)
-        weight = np.empty((n, 2, 4), np.float32)
+        index = np.empty((8, n), np.int32)
+        weight = np.empty((8, n), np.float32)
         x, y = samples.x[c:d], samples.y[c:d]
         up = samples.upper[c:d].astype(np.float32)
         for j, share in ((0, 1.0 - up), (1, up)):
-            if j:
-                if halve:
-                    x = x * np.float32(0.5) + np.float32(0.25)
-                    y = y * np.float32(0.5) + np.float32(0.25)
+            if j and halve:
+                x = x * np.float32(0.5) + np.float32(0.25)
+                y = y * np.float32(0.5) + np.float32(0.25)
             x0, y0 = np.floor(x), np.floor(y)
             ax, ay = x - x0, y - y0
             base = y0.astype(np.int32)
             base *= stride[j]
             base += x0.astype(np.int32)
             base += start[j]
-            tap = index[:, j]
-            tap[:, 0] = base
-            tap[:, 1] = base + 1
-            base += stride[j]
-            tap[:, 2] = base
-            tap[:, 3] = base + 1
+            # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
+            k = 4 * j
+            index[k] = base
+            np.add(base, 1, out=index[k + 1])
+            np.add(base, stride[j], out=index[k + 2])
+            np.add(base, stride[j] + 1, out=index[k + 3])
             bx, by = share - share * ax, 1 - ay  # the level's share folded into x
             ax *= share
-            w = weight[:, j]
-            np.multiply(bx, by, out=w[:, 0])
-            np.multiply(ax, by, out=w[:, 1])
-            np.multiply(bx, ay, out=w[:, 2])
-            np.multiply(ax, ay, out=w[:, 3])
-        taps = np.take(source, index.reshape(n, 8), axis=0, mode="clip")
-        np.einsum("tkc,tk->tc", taps, weight.reshape(n, 8), out=values[c:d])
+            np.multiply(bx, by, out=weight[k])
+            np.multiply(ax, by, out=weight[k + 1])
+            np.multiply(bx, ay, out=weight[k + 2])
+            np.multiply(ax, ay, out=weight[k + 3])
+        taps = np.take(source, index, axis=0, mode="clip")
+        np.einsum("ktc,kt->tc", taps, weight, out=values[c:d])
 
     span = b - a
     for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
@@ -162,14 +176,8 @@ def _run_opencv(samples, a, b, image, image_next, halve, values) -> None:
         x = x * np.float32(0.5) + np.float32(0.25)
         y = y * np.float32(0.5) + np.float32(0.25)
     high = cv.remap(image_next, x, y, cv.INTER_LINEAR, borderMode=cv.BORDER_REPLICATE)
-    low = low.reshape(-1, 3)
-    high = high.reshape(-1, 3)
-    up = samples.upper[a:b]
-
-    def blend(c, d):
-        res = values[a + c : a + d]
-        np.subtract(high[c:d], low[c:d], out=res)
-        res *= up[c:d, None]
-        res += low[c:d]
-
-    for_blocks(blend, b - a)
+    # The blend low + up (high - low) as OpenCV's blendLinear, which divides by the weights'
+    # sum + 1e-5: weights scaled by 2^17 make that division exact in float32.
+    up = samples.upper[a:b].reshape(x.shape).astype(np.float32)
+    up *= np.float32(2.0**17)
+    cv.blendLinear(low, high, np.float32(2.0**17) - up, up, dst=values[a:b].reshape(low.shape))
