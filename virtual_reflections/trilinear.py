@@ -38,7 +38,8 @@ BLOCK = 8192  # texels per block of NumPy work: its taps stay in the cache
 class Trilinear:
     """Trilinear samples grouped by their lower mip level (see the module docstring).
 
-    levels: the lower level of each run; starts: run r is rows starts[r] .. starts[r + 1] - 1.
+    levels: the lower level of each run; starts: run r is rows starts[r] .. starts[r + 1] - 1;
+    singles: whether the run's texels have no share on the next level (read as one sample).
     x, y: (n,) float32 positions on the run's level (bordered pixel coordinates).
     upper: (n,) float16, the next level's share.
     rank: (H, W, 2) int16, each texel's row of the runs as (row % ROW, row // ROW): the
@@ -51,43 +52,51 @@ class Trilinear:
     y: np.ndarray
     upper: np.ndarray
     rank: np.ndarray
+    singles: tuple = ()  # per run: True when its shares are all 0 (one bilinear sample each)
 
 
 def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
     mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
     next level, blended by the fraction (as `table._bilinear`); `shape`: the map's (H, W)."""
-    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0)).astype(np.uint8)
-    counts = np.bincount(lo, minlength=top + 1)
-    order = np.argsort(lo, kind="stable")  # map order within a level: reads stay local
-    levels, starts, rank = [], [0], np.empty((lo.size, 2), np.int16)
+    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
+    share = np.clip(lod - lo.astype(np.float32), 0.0, 1.0).astype(np.float16)
+    # Runs by level, and within a level first the texels that read the next level, then those
+    # that do not (share 0: magnified, lod clipped to 0): their runs are one bilinear sample.
+    key = (2 * lo + (share == 0)).astype(np.uint8)
+    counts = np.bincount(key, minlength=2 * top + 2)
+    order = np.argsort(key, kind="stable")  # map order within a run: reads stay local
+    levels, singles, starts = [], [], [0]
+    rank = np.empty((lo.size, 2), np.int16)
     padded = sum(-(-int(c) // ROW) * ROW for c in counts)
     x = np.ones(padded, np.float32)  # padding: pixel (0, 0) of the level, share 0
     y = np.ones(padded, np.float32)
     upper = np.zeros(padded, np.float16)
     taken = 0
-    for level, count in enumerate(counts):
+    for run, count in enumerate(counts):
         count = int(count)
         if not count:
             continue
+        level = run // 2
         ids = order[taken : taken + count]
         taken += count
         a = starts[-1]
         scale = np.float32(2.0**-level)
         x[a : a + count] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
         y[a : a + count] = py[ids] * scale + np.float32(0.5)
-        upper[a : a + count] = np.clip(lod[ids] - np.float32(level), 0.0, 1.0)
+        upper[a : a + count] = share[ids]
         rows = np.arange(a, a + count, dtype=np.int64)
         rank[ids, 0] = rows % ROW
         rank[ids, 1] = rows // ROW
         levels.append(level)
+        singles.append(bool(run % 2))
         starts.append(a + -(-count // ROW) * ROW)
     if starts[-1] > ROW * MAX_ROWS:
         raise ValueError(f"{lo.size} texels: more than this table's compact form holds")
     rank = rank.reshape(tuple(shape) + (2,))
     for array in (x, y, upper, rank):
         array.flags.writeable = False
-    return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank)
+    return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
 
 
 def gather(samples: Trilinear, source, shapes, offsets, out, use: str | None = None) -> None:
@@ -98,14 +107,14 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use: str | None = N
     values = np.empty((samples.starts[-1], 3), np.float32)
     for r, level in enumerate(samples.levels):
         a, b = samples.starts[r], samples.starts[r + 1]
-        nxt = min(level + 1, top)
+        nxt = level if samples.singles[r] else min(level + 1, top)
         if use == "opencv":
             images = _level(source, shapes, offsets, level), _level(source, shapes, offsets, nxt)
-            _run_opencv(samples, a, b, *images, nxt > level, values)
+            _run_opencv(samples, a, b, *images, nxt > level, values, samples.singles[r])
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
-            _run_numpy(samples, a, b, stride, start, nxt > level, source, values)
+            _run_numpy(samples, a, b, stride, start, nxt > level, source, values, samples.singles[r])
     height, width = samples.rank.shape[:2]
     if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
         cv = cv2()
@@ -128,16 +137,18 @@ def _level(source, shapes, offsets, level):
     return source[int(offsets[level]) : int(offsets[level + 1])].reshape(h + 2, w + 2, 3)
 
 
-def _run_numpy(samples, a, b, stride, start, halve, source, values) -> None:
+def _run_numpy(samples, a, b, stride, start, halve, source, values, single=False) -> None:
     """Rows a .. b - 1 of one run, in blocks over the cores: 8 taps each, one take, a sum."""
 
     def block(c, d):  # taps plane by plane (8, n): every step works on whole (n,) rows
         n = d - c
-        index = np.empty((8, n), np.int32)
-        weight = np.empty((8, n), np.float32)
+        taps = 4 if single else 8  # a single run: level L alone, its share 1
+        index = np.empty((taps, n), np.int32)
+        weight = np.empty((taps, n), np.float32)
         x, y = samples.x[c:d], samples.y[c:d]
         up = samples.upper[c:d].astype(np.float32)
-        for j, share in ((0, 1.0 - up), (1, up)):
+        shares = ((0, np.float32(1.0)),) if single else ((0, 1.0 - up), (1, up))
+        for j, share in shares:
             if j and halve:
                 x = x * np.float32(0.5) + np.float32(0.25)
                 y = y * np.float32(0.5) + np.float32(0.25)
@@ -166,11 +177,16 @@ def _run_numpy(samples, a, b, stride, start, halve, source, values) -> None:
     for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
 
 
-def _run_opencv(samples, a, b, image, image_next, halve, values) -> None:
-    """Rows a .. b - 1 of one run: two remaps (levels L, L + 1) and their blend."""
+def _run_opencv(samples, a, b, image, image_next, halve, values, single=False) -> None:
+    """Rows a .. b - 1 of one run: two remaps (levels L, L + 1) and their blend (a single
+    run: one remap)."""
     cv = cv2()
     x = samples.x[a:b].reshape(-1, ROW)
     y = samples.y[a:b].reshape(-1, ROW)
+    if single:
+        dst = values[a:b].reshape(x.shape + (3,))
+        cv.remap(image, x, y, cv.INTER_LINEAR, dst=dst, borderMode=cv.BORDER_REPLICATE)
+        return
     low = cv.remap(image, x, y, cv.INTER_LINEAR, borderMode=cv.BORDER_REPLICATE)
     if halve:
         x = x * np.float32(0.5) + np.float32(0.25)

@@ -71,6 +71,10 @@ def test_compact_samples_are_10_bytes_a_row_and_grouped_by_level():
     assert nbytes == 10 * s.starts[-1] + 4 * px.size
     assert s.starts[-1] <= px.size + len(s.levels) * ROW
     assert list(s.levels) == sorted(s.levels) and all(b % ROW == 0 for b in s.starts)
+    # Texels with no share on the next level (lod 0 here) are runs of one sample each.
+    assert any(s.singles) and all(
+        not s.upper[a:b].any() for a, b, one in zip(s.starts, s.starts[1:], s.singles) if one
+    )
     rows = s.rank[..., 1].astype(np.int64) * ROW + s.rank[..., 0]
     assert np.unique(rows).size == px.size  # every texel has its own row
 
