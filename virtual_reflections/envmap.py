@@ -17,6 +17,7 @@ from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
+from .taps import weighted_sum
 from .params import Params
 from .table import LookupTable, lookup_table
 from .supersample import gather as gather_supersample
@@ -109,14 +110,16 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
 def _gather(source, texels, index, weight, out) -> None:
     """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
-    taps = _scratch("taps", index.shape + (3,))
+    buffer = _scratch("taps", index.shape + (3,))
 
     def gather(a, b):  # one block of texels: its taps, then their weighted sum
-        np.take(source, index[a:b], axis=0, mode="clip", out=taps[a:b])
+        taps = np.take(source, index[a:b], axis=0, mode="clip", out=buffer[a:b])
         if texels is None:
-            np.einsum("tkc,tk->tc", taps[a:b], weight[a:b], out=out[a:b])
+            weighted_sum(taps, weight[a:b], out[a:b])
         else:
-            out[texels[a:b]] = np.einsum("tkc,tk->tc", taps[a:b], weight[a:b])
+            sums = np.empty((b - a, 3), np.float32)
+            weighted_sum(taps, weight[a:b], sums)
+            out[texels[a:b]] = sums
 
     for_blocks(gather, index.shape[0])
 

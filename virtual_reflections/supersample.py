@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .parallel import for_blocks
+from .taps import weighted_sum
 
 BLOCK = 1024  # texels per block of NumPy work (K samples, 4 K taps each)
 STEPS = 65535  # a sample's position between two pixels, in uint16 steps
@@ -117,13 +118,15 @@ def gather(samples: Supersample, source, out) -> None:
             ay = samples.fy[c:d] * scale
             bx, by = 1 - ax, (1 - ay) * share
             ay *= share
-            weight = np.empty((n, 1, 4 * k), np.float32)
+            weight = np.empty((n, 4 * k), np.float32)
             w = weight.reshape(n, 4, k)
             np.multiply(by, bx, out=w[:, 0])
             np.multiply(by, ax, out=w[:, 1])
             np.multiply(ay, bx, out=w[:, 2])
             np.multiply(ay, ax, out=w[:, 3])
             taps = np.take(source, index.reshape(n, -1), axis=0, mode="clip")
-            out[samples.texels[c:d]] = np.matmul(weight, taps).reshape(n, 3)
+            sums = np.empty((n, 3), np.float32)
+            weighted_sum(taps, weight, sums)
+            out[samples.texels[c:d]] = sums
 
         for_blocks(block, samples.starts[r + 1] - a, min_rows=BLOCK, max_rows=BLOCK)

@@ -28,6 +28,7 @@ import numpy as np
 
 from .opencv import backend, cv2
 from .parallel import for_blocks
+from .taps import weighted_sum
 
 ROW = 2048  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
 MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
@@ -171,7 +172,7 @@ def _run_numpy(samples, a, b, stride, start, halve, source, values, single=False
             np.multiply(bx, ay, out=weight[k + 2])
             np.multiply(ax, ay, out=weight[k + 3])
         taps = np.take(source, index, axis=0, mode="clip")
-        np.einsum("ktc,kt->tc", taps, weight, out=values[c:d])
+        weighted_sum(taps, weight, values[c:d], rows_first=False)
 
     span = b - a
     for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
