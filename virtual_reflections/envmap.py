@@ -17,6 +17,7 @@ from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import for_blocks
+from .opencv import backend
 from .taps import weighted_sum
 from .params import Params
 from .table import LookupTable, lookup_table
@@ -54,6 +55,20 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             f"{seg.width}x{seg.height}"
         )
     first = table.first_level
+    # With OpenCV, the paper's table reads level 0 from the plate itself (no border: its
+    # remaps repeat the edge), so the pyramid need not copy it.
+    direct = (
+        first == 0
+        and table.levels > 1
+        and table.trilinear is not None
+        and table.index is None
+        and table.supersample is None
+        and not table.groups
+        and table.fill is None
+        and backend() == "opencv"
+    )
+    if direct:
+        first = 1
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
     fill = table.fill
     extra = FILL_BINS * fill.sides if fill is not None else 0
@@ -98,7 +113,8 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     if table.trilinear is not None:  # every texel, the groups written over it
         shapes = level_shapes(seg.height, seg.width, table.levels)
         offsets = level_offsets(shapes, first)
-        gather_trilinear(table.trilinear, pyramid, shapes, offsets, out)
+        level0 = np.ascontiguousarray(plate, np.float32) if direct else None
+        gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
     if table.index is not None:
         _gather(source, table.texels, table.index, table.weight, out)
     if table.supersample is not None:

@@ -100,18 +100,25 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
 
 
-def gather(samples: Trilinear, source, shapes, offsets, out, use: str | None = None) -> None:
+def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=None) -> None:
     """out (T, 3) float32 = the samples read from the flat bordered pyramid `source` (levels
-    of `shapes` at row `offsets`), with `use` ("numpy", "opencv"; default `backend()`)."""
+    of `shapes` at row `offsets`), with `use` ("numpy", "opencv"; default `backend()`).
+    `plate`: level 0 itself ((H, W, 3) float32, no border), for OpenCV when `source` does
+    not hold level 0 (its remaps read past the edge as the border does: the edge)."""
     use = use or backend()
+    if plate is not None and use != "opencv":
+        raise ValueError("the plate as level 0 is for the OpenCV back end")
     top = len(shapes) - 1
     values = np.empty((samples.starts[-1], 3), np.float32)
     for r, level in enumerate(samples.levels):
         a, b = samples.starts[r], samples.starts[r + 1]
         nxt = level if samples.singles[r] else min(level + 1, top)
         if use == "opencv":
-            images = _level(source, shapes, offsets, level), _level(source, shapes, offsets, nxt)
-            _run_opencv(samples, a, b, *images, nxt > level, values, samples.singles[r])
+            low, high = (
+                (plate, 1) if v == 0 and plate is not None else (_level(source, shapes, offsets, v), 0)
+                for v in (level, nxt)
+            )  # (image, shift): the plate has no border, its pixel i is the level's i + 1
+            _run_opencv(samples, a, b, low, high, nxt > level, values, samples.singles[r])
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
@@ -178,21 +185,26 @@ def _run_numpy(samples, a, b, stride, start, halve, source, values, single=False
     for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
 
 
-def _run_opencv(samples, a, b, image, image_next, halve, values, single=False) -> None:
-    """Rows a .. b - 1 of one run: two remaps (levels L, L + 1) and their blend (a single
-    run: one remap)."""
+def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
+    """Rows a .. b - 1 of one run: two remaps (levels L, L + 1: (image, shift) each) and
+    their blend (a single run: one remap)."""
     cv = cv2()
     x = samples.x[a:b].reshape(-1, ROW)
     y = samples.y[a:b].reshape(-1, ROW)
+
+    def remap(image, shift, x, y, dst=None):
+        if shift:
+            x, y = x - np.float32(shift), y - np.float32(shift)
+        return cv.remap(image, x, y, cv.INTER_LINEAR, dst=dst, borderMode=cv.BORDER_REPLICATE)
+
     if single:
-        dst = values[a:b].reshape(x.shape + (3,))
-        cv.remap(image, x, y, cv.INTER_LINEAR, dst=dst, borderMode=cv.BORDER_REPLICATE)
+        remap(*low, x, y, dst=values[a:b].reshape(x.shape + (3,)))
         return
-    low = cv.remap(image, x, y, cv.INTER_LINEAR, borderMode=cv.BORDER_REPLICATE)
+    low = remap(*low, x, y)
     if halve:
         x = x * np.float32(0.5) + np.float32(0.25)
         y = y * np.float32(0.5) + np.float32(0.25)
-    high = cv.remap(image_next, x, y, cv.INTER_LINEAR, borderMode=cv.BORDER_REPLICATE)
+    high = remap(*high, x, y)
     # The blend low + up (high - low) as OpenCV's blendLinear, which divides by the weights'
     # sum + 1e-5: weights scaled by 2^17 make that division exact in float32.
     up = samples.upper[a:b].reshape(x.shape).astype(np.float32)

@@ -138,3 +138,20 @@ def test_compact_supersamples_read_what_their_taps_read():
     out2 = np.zeros((5000, 3), np.float32)
     gather_supersample(samples.without(drop), flat, out2)
     assert not out2[texels[:100]].any() and np.array_equal(out2[texels[100:]], out[texels[100:]])
+
+
+@needs_cv2
+def test_opencv_reads_level_0_from_the_plate_as_from_the_pyramid():
+    """envmap reads the paper's level 0 from the plate itself with OpenCV (no copy into the
+    pyramid): its remaps repeat the edge as the pyramid's border does."""
+    px, py, lod = _samples()
+    px[:20], py[:20] = 0.0, np.float32(H)  # on the plate's edges
+    plate = _plate()
+    shapes = level_shapes(H, W)
+    samples = trilinear_samples(px, py, lod, len(shapes) - 1, (px.size, 1))
+    full = np.empty((px.size, 3), np.float32)
+    gather(samples, build_pyramid(plate), shapes, level_offsets(shapes), full, use="opencv")
+    direct = np.empty_like(full)
+    part = build_pyramid(plate, first=1)
+    gather(samples, part, shapes, level_offsets(shapes, 1), direct, use="opencv", plate=plate)
+    assert np.abs(direct - full).max() < 1e-6
