@@ -16,12 +16,12 @@ import numpy as np
 from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
-from .parallel import for_blocks
 from .opencv import backend
-from .taps import weighted_sum
+from .parallel import for_blocks
 from .params import Params
-from .table import LookupTable, lookup_table
 from .supersample import gather as gather_supersample
+from .table import LookupTable, lookup_table
+from .taps import weighted_sum
 from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}

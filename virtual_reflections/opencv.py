@@ -24,7 +24,7 @@ def cv2():
 
 
 def backend() -> str:
-    """"opencv" when cv2 imports and VR_GATHER is not "numpy", else "numpy"."""
+    """'opencv' when cv2 imports and VR_GATHER is not 'numpy', else 'numpy'."""
     if os.environ.get("VR_GATHER", "").strip().lower() == "numpy":
         return "numpy"
     return "opencv" if cv2() is not None else "numpy"

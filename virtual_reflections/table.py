@@ -392,7 +392,6 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     lod = np.clip(_lod(layout, size, position).ravel(), 0.0, top)
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
-    offsets = level_offsets(shapes, first)
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
     return LookupTable(
         segmentation=seg,

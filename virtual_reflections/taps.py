@@ -18,4 +18,3 @@ def weighted_sum(taps, weight, out, rows_first: bool = True) -> None:
     spec = "tk,tk->t" if rows_first else "kt,kt->t"
     for c in range(3):
         np.einsum(spec, taps[..., c], weight, out=out[:, c])
-

@@ -115,14 +115,18 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=Non
         nxt = level if samples.singles[r] else min(level + 1, top)
         if use == "opencv":
             low, high = (
-                (plate, 1) if v == 0 and plate is not None else (_level(source, shapes, offsets, v), 0)
+                (plate, 1)
+                if v == 0 and plate is not None
+                else (_level(source, shapes, offsets, v), 0)
                 for v in (level, nxt)
             )  # (image, shift): the plate has no border, its pixel i is the level's i + 1
             _run_opencv(samples, a, b, low, high, nxt > level, values, samples.singles[r])
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
-            _run_numpy(samples, a, b, stride, start, nxt > level, source, values, samples.singles[r])
+            _run_numpy(
+                samples, a, b, stride, start, nxt > level, source, values, samples.singles[r]
+            )
     height, width = samples.rank.shape[:2]
     if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
         cv = cv2()
