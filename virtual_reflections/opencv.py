@@ -17,7 +17,7 @@ def cv2():
     if not _module:
         try:
             import cv2 as module  # optional: never required
-        except ImportError:
+        except Exception:  # not installed, or broken: the NumPy path, never an error
             module = None
         _module.append(module)
     return _module[0]
