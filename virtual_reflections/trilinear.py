@@ -5,9 +5,10 @@ level's share. Instead of its 8 pyramid rows and weights (64 bytes), a texel kee
 position on level L (x, y: float32, in that level's bordered pixel coordinates, pixel
 centres at integers, see mipmap.py) and the share (float16): on level L + 1 the position is
 (x / 2 + 1/4, y / 2 + 1/4). Texels are grouped by L (runs, each padded to a whole number of
-ROW texels), so within a run the level, its row length and its offset in the flat pyramid
-are numbers, not arrays; `rank` (two int16) takes the runs' results back to map order. With
-the rank: 14 bytes per texel.
+ROW texels; within a level, those with share 0 apart: their runs read level L alone), so
+within a run the level, its row length and its offset in the flat pyramid are numbers, not
+arrays; `rank` (two int16) takes the runs' results back to map order. With the rank: 14
+bytes per texel.
 
 Two back ends give the same samples (`gather`):
 
@@ -15,9 +16,10 @@ Two back ends give the same samples (`gather`):
   with one `take` and a weighted sum — the arithmetic of `table._bilinear`.
 - OpenCV's `remap` (optional, used when `cv2` imports; VR_GATHER=numpy forces NumPy): each
   run is two remaps (levels L and L + 1) and a blend (`blendLinear`), and the way back to map
-  order one nearest-pixel remap. Its bilinear weights are rounded to
-  1/32 of a pixel (INTER_BITS = 5), so it differs from NumPy's by up to 1/64 of the step
-  between neighbouring pixels (tests/engine/test_trilinear.py measures it).
+  order one nearest-pixel remap; level 0 may be the plate itself (`gather`'s `plate`). Its
+  bilinear weights are rounded to 1/32 of a pixel (INTER_BITS = 5): it differs from NumPy's
+  by at most 1/32 of the largest step between neighbouring pixels
+  (tests/engine/test_compact_samples.py measures it).
 """
 
 from __future__ import annotations
