@@ -5,7 +5,10 @@ Per frame (the table cached): applying the table to a 1920x1080 plate for both m
 same lat-long from cube faces with the fastest back end it finds (OpenCV's `remap` when
 installed, else SciPy's `map_coordinates`; the line says which), and beside them the bandwidth
 floor: one copy of the plate. Repetitions are interleaved, so all see the same machine load;
-the ratio ours / peer is what we hold ourselves to.
+the ratio ours / peer is what we hold ourselves to. Ours is measured with both back ends
+(virtual_reflections/opencv.py): OpenCV's remap/resize when cv2 imports (the default then),
+and NumPy (VR_GATHER=numpy, what Blender runs: it does not bundle OpenCV); the line says
+which one the engine uses by default here.
 
 Cold tables (new bounds or camera): building the table from a 3840x2160 plate for 2048 and
 4096 wide lat-longs, its time, its bytes per texel and the peak memory while building
@@ -29,6 +32,7 @@ import numpy as np
 from virtual_reflections.cache import nbytes
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.mipmap import pyramid_size
+from virtual_reflections.opencv import backend
 from virtual_reflections.params import Params
 from virtual_reflections.segmentation import segment
 from virtual_reflections.table import build_table
@@ -106,6 +110,14 @@ def _peer_call(p360, plate: np.ndarray, size: int):
     return lambda: p360.c2e(faces, size // 2, size, cube_format="list")
 
 
+def _set_gather(value) -> None:
+    """VR_GATHER for the next call ("numpy": the NumPy back end; "" or None: the default)."""
+    if value:
+        os.environ["VR_GATHER"] = value
+    else:
+        os.environ.pop("VR_GATHER", None)
+
+
 def _machine() -> str:
     return (
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
@@ -120,27 +132,41 @@ def run_bench(repeat: int = 15) -> dict:
     print(f"peer: {peer_name}")
     figures = {}
     plate = _plate()
+    default = backend()
+    engines = ["opencv", "numpy"] if default == "opencv" else ["numpy"]
+    print(f"engine back end: {default} by default (VR_GATHER=numpy forces NumPy)")
     print(f"\nper frame (table cached): {PLATE_W}x{PLATE_H} plate, medians of {repeat}")
+    forced = os.environ.get("VR_GATHER")
     for size in (1024, 2048):
         tables = {m: _table(m, PLATE_W, PLATE_H, size) for m in METHODS}
-        calls = {f"ours {m}": (lambda t=t: apply_table(t, plate)) for m, t in tables.items()}
+        calls = {  # (VR_GATHER for the call, the call)
+            f"ours {m} {e}": ("numpy" if e == "numpy" else "", lambda t=t: apply_table(t, plate))
+            for m, t in tables.items()
+            for e in engines
+        }
         if p360 is not None:
-            calls["peer"] = _peer_call(p360, plate, size)
-        calls["plate copy"] = plate.copy
+            calls["peer"] = (forced, _peer_call(p360, plate, size))
+        calls["plate copy"] = (forced, plate.copy)
         times = {k: [] for k in calls}
-        for _ in range(repeat):  # interleaved: every call sees the same load
-            for k, fn in calls.items():
-                t = time.perf_counter()
-                fn()
-                times[k].append(time.perf_counter() - t)
+        try:
+            for _ in range(repeat):  # interleaved: every call sees the same load
+                for k, (gather, fn) in calls.items():
+                    _set_gather(gather)
+                    t = time.perf_counter()
+                    fn()
+                    times[k].append(time.perf_counter() - t)
+        finally:
+            _set_gather(forced)
         ms = {k: 1000.0 * float(np.median(v)) for k, v in times.items()}
         line = ", ".join(f"{k} {v:.1f} ms" for k, v in ms.items())
         print(f"  {size}x{size // 2}: {line}")
         for m in METHODS:
-            figures[f"apply {m} {size}"] = ms[f"ours {m}"]
-            if "peer" in ms:
-                figures[f"ratio {m} {size}"] = ms[f"ours {m}"] / ms["peer"]
-                print(f"    ratio {m} / peer: {figures[f'ratio {m} {size}']:.2f} (target <= 1.0)")
+            for e in engines:
+                key = "" if e == default else f" {e}"
+                figures[f"apply {m} {size}{key}"] = ms[f"ours {m} {e}"]
+                if "peer" in ms:
+                    ratio = figures[f"ratio {m} {size}{key}"] = ms[f"ours {m} {e}"] / ms["peer"]
+                    print(f"    ratio {m} ({e}) / peer: {ratio:.2f} (target <= 1.0)")
         figures[f"peer {size}"] = ms.get("peer")
         figures[f"copy {size}"] = ms["plate copy"]
     width, height = PLATES["4K"]

@@ -260,6 +260,13 @@ def supersample_taps(
     `level` (S,) (`supersample_levels`) of the flat bordered pyramid with level `offsets`.
     `project` maps (k, 3) directions to plate positions (px, py) (default: where the camera
     sees the direction, the distant model; ground.py passes where it sees the ground point)."""
+    positions = supersample_positions(layout, size, ids, intrinsics, n, project)
+    return mean_taps(positions, level, shapes, offsets)
+
+
+def supersample_positions(layout, size, ids, intrinsics, n: int = SUPERSAMPLE, project=None):
+    """The n x n sample positions of `supersample_taps`: n^2 pairs of (S,) plate
+    coordinates (px, py) at level 0's scale."""
     fx, fy, cx, cy = intrinsics
     positions = []
     for sy in range(n):
@@ -272,7 +279,7 @@ def supersample_taps(
             else:
                 px, py = project(d)
             positions.append((px, py))
-    return mean_taps(positions, level, shapes, offsets)
+    return positions
 
 
 def mean_taps(positions, level, shapes, offsets):
@@ -605,16 +612,18 @@ def fill_values(steps, side, lookup, out) -> None:
     sides blended by `side` ((3 W,) float32: the left side's weight per column, repeated for
     R, G, B; n a whole number of rows), or one side's (side None)."""
     if steps.size < out.shape[0]:  # one step per row: each row's colours by column
-        rows = out.reshape(steps.size, -1, 3)
         left = np.take(lookup[0], steps, axis=0)  # (rows, 3)
         if side is None:
-            rows[:] = left[:, None]
+            out.reshape(steps.size, -1, 3)[:] = left[:, None]
             return
         right = np.take(lookup[1], steps, axis=0)
-        left -= right
-        for c in range(3):  # outer products: long inner loops
-            np.multiply.outer(left[:, c], side[c::3], out=rows[:, :, c])
-            rows[:, :, c] += right[:, c, None]
+        # Rows of 3 W floats = left * side + right * (1 - side), per channel: one matrix
+        # product (rows, 6) @ (6, 3 W) writes them in order (BLAS, over the cores).
+        mix = np.zeros((6, side.size), np.float32)
+        for c in range(3):
+            mix[c, c::3] = side[c::3]
+            mix[3 + c, c::3] = 1 - side[c::3]
+        np.matmul(np.concatenate((left, right), axis=1), mix, out=out.reshape(steps.size, -1))
         return
     if side is None:
         np.take(lookup[0], steps, axis=0, out=out)

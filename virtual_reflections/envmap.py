@@ -15,10 +15,14 @@ import numpy as np
 
 from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
-from .mipmap import build_pyramid, level_shapes, level_view, pyramid_size
+from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
+from .opencv import backend
 from .parallel import for_blocks
 from .params import Params
+from .supersample import gather as gather_supersample
 from .table import LookupTable, lookup_table
+from .taps import weighted_sum
+from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
 
@@ -51,6 +55,20 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             f"{seg.width}x{seg.height}"
         )
     first = table.first_level
+    # With OpenCV, the paper's table reads level 0 from the plate itself (no border: its
+    # remaps repeat the edge), so the pyramid need not copy it.
+    direct = (
+        first == 0
+        and table.levels > 1
+        and table.trilinear is not None
+        and table.index is None
+        and table.supersample is None
+        and not table.groups
+        and table.fill is None
+        and backend() == "opencv"
+    )
+    if direct:
+        first = 1
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
     fill = table.fill
     extra = FILL_BINS * fill.sides if fill is not None else 0
@@ -88,22 +106,36 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
             fill_values(mine, side, lookup, out[texels])
 
-        for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
-    for texels, index, weight in ((table.texels, table.index, table.weight), *table.groups):
+        if steps.size == table.shape[0]:  # one step per row: one matrix product
+            fill_values(steps, side, lookup, out)
+        else:
+            for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
+    if table.trilinear is not None:  # every texel, the groups written over it
+        shapes = level_shapes(seg.height, seg.width, table.levels)
+        offsets = level_offsets(shapes, first)
+        level0 = np.ascontiguousarray(plate, np.float32) if direct else None
+        gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
+    if table.index is not None:
+        _gather(source, table.texels, table.index, table.weight, out)
+    if table.supersample is not None:
+        gather_supersample(table.supersample, source, out)
+    for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))
 
 
 def _gather(source, texels, index, weight, out) -> None:
     """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
-    taps = _scratch("taps", index.shape + (3,))
+    buffer = _scratch("taps", index.shape + (3,))
 
     def gather(a, b):  # one block of texels: its taps, then their weighted sum
-        np.take(source, index[a:b], axis=0, mode="clip", out=taps[a:b])
+        taps = np.take(source, index[a:b], axis=0, mode="clip", out=buffer[a:b])
         if texels is None:
-            np.einsum("tkc,tk->tc", taps[a:b], weight[a:b], out=out[a:b])
+            weighted_sum(taps, weight[a:b], out[a:b])
         else:
-            out[texels[a:b]] = np.einsum("tkc,tk->tc", taps[a:b], weight[a:b])
+            sums = np.empty((b - a, 3), np.float32)
+            weighted_sum(taps, weight[a:b], sums)
+            out[texels[a:b]] = sums
 
     for_blocks(gather, index.shape[0])
 

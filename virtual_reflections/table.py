@@ -1,9 +1,11 @@
 """The lookup table from map texels to filtered plate samples, built once and cached.
 
 A table depends only on geometry: plate size, object bounds, parameters, layout and map
-size. It stores, for every texel, the indices of 8 pyramid pixels (bilinear on two mip
-levels) and their weights, so applying it to a plate — a new frame with unchanged bounds —
-is one pyramid build and one gather.
+size. It stores, for every texel, a filtered sample of the plate's mip pyramid, so applying
+it to a plate — a new frame with unchanged bounds — is one pyramid build and one gather. The
+paper's method keeps every texel as a trilinear sample (bilinear on two mip levels) in the
+compact form of trilinear.py (14 bytes a texel: its position on the lower level and the next
+level's share, grouped by level); the other groups keep rows of the flat pyramid and weights.
 
 Anti-aliasing: the texel's footprint on the plate (how far the plate position moves over
 one texel, from the positions half a texel to either side) picks a mip level, so where a
@@ -41,6 +43,8 @@ from .parallel import CHUNK, for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
+from .supersample import Supersample, supersamples
+from .trilinear import Trilinear, trilinear_samples
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,7 +52,7 @@ class LookupTable:
     """Texel -> weighted pyramid pixels for one plate size, segmentation and map layout.
 
     index:  (T, 8) int32 rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
-    weight: (T, 8) float32, rows sum to 1.
+    weight: (T, 8) float32, rows sum to 1. (Both None when `trilinear` holds every texel.)
     shape:  (H, W) of the map; pyramid levels `first_level` .. `levels` - 1 are needed.
     """
 
@@ -69,6 +73,12 @@ class LookupTable:
     # without a world horizon, (H,) per row, uint16; side (3 W,) float32 or None), see
     # camera_view.fill_values.
     fill_texels: tuple | None = None
+    # The paper's method: every texel a trilinear sample, stored compactly (trilinear.py;
+    # index and weight are None), written before the groups.
+    trilinear: Trilinear | None = None
+    # The camera view's seen texels: the mean of n x n bilinear samples each, stored compactly
+    # (supersample.py), written after index/weight's texels, before the groups.
+    supersample: Supersample | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -331,11 +341,10 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             near_fill = all_index[near], all_weight[near]
         near_index[:, 8:] = near_fill[0]
         near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
-    if seen.size:
-        seen_index, seen_weight = camera_view.supersample_taps(
-            layout, size, seen, intrinsics, seen_level, shapes, offsets
-        )
-        groups.append((seen, seen_index, seen_weight))
+    seen_samples = None
+    if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
+        positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
+        seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
     main = (near, near_index, near_weight)
     if filled and fill_texels is None:  # the fill's taps first, the others written over them
         main, groups = (None, all_index, all_weight), [main, *groups]
@@ -355,6 +364,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         groups=tuple(groups),
         fill=fill,
         fill_texels=fill_texels,
+        supersample=seen_samples,
     )
 
 
@@ -382,17 +392,7 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     lod = np.clip(_lod(layout, size, position).ravel(), 0.0, top)
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
-    offsets = level_offsets(shapes, first)
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
-    index = np.empty((count, 8), np.int32)  # the whole pyramid has < 2^31 rows
-    weight = np.empty((count, 8), np.float32)
-
-    def taps(a, b):
-        _bilinear(px[a:b], py[a:b], lod[a:b], shapes, offsets, index[a:b], weight[a:b])
-
-    for_blocks(taps, count, max_rows=CHUNK)
-    for a in (index, weight):
-        a.flags.writeable = False
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -400,8 +400,9 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         shape=shape,
         levels=min(int(lod.max()) + 2, top + 1),
         first_level=first,
-        index=index,
-        weight=weight,
+        index=None,
+        weight=None,
+        trilinear=trilinear_samples(px, py, lod, top, shape),
     )
 
 
@@ -447,6 +448,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         return texels[keep], idx[keep], wts[keep]
 
     groups = [without(base.texels, base.index, base.weight), *(without(*g) for g in base.groups)]
+    seen = None if base.supersample is None else base.supersample.without(taken)
     full = share >= 1.0
     groups.append((ids[full], index[full], weight[full]))
     part = np.flatnonzero(~full)
@@ -481,6 +483,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         index=near[1],
         weight=near[2],
         groups=tuple(g for g in rest if g[0].size),
+        supersample=seen if seen is not None and seen.texels.size else None,
     )
 
 

@@ -3,12 +3,17 @@
 import numpy as np
 import pytest
 
-from virtual_reflections import Params, lookup_table
+from virtual_reflections import Params, lookup_table, opencv
 from virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
 
 
-@pytest.mark.parametrize("h, w", [(8, 8), (7, 5), (1, 6), (5, 1), (1, 1), (37, 50)])
-def test_levels_are_2x2_box_filters_with_repeated_edges(h, w):
+@pytest.mark.parametrize("use", ["numpy", "opencv"])
+@pytest.mark.parametrize("h, w", [(8, 8), (7, 5), (1, 6), (5, 1), (1, 1), (37, 50), (36, 51)])
+def test_levels_are_2x2_box_filters_with_repeated_edges(h, w, use, monkeypatch):
+    """Both back ends (OpenCV's area resize when installed, VR_GATHER=numpy)."""
+    if use == "opencv" and opencv.cv2() is None:
+        pytest.skip("OpenCV not installed (optional)")
+    monkeypatch.setenv("VR_GATHER", use)
     rng = np.random.default_rng(h * 100 + w)
     plate = rng.random((h, w, 3), dtype=np.float32)
     flat, shapes = build_pyramid(plate), level_shapes(h, w)

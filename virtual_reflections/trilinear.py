@@ -1,0 +1,218 @@
+"""Trilinear samples of the mip pyramid, stored compactly and read with NumPy or OpenCV.
+
+A trilinear sample is bilinear on mip level L and on level L + 1, blended by the next
+level's share. Instead of its 8 pyramid rows and weights (64 bytes), a texel keeps its
+position on level L (x, y: float32, in that level's bordered pixel coordinates, pixel
+centres at integers, see mipmap.py) and the share (float16): on level L + 1 the position is
+(x / 2 + 1/4, y / 2 + 1/4). Texels are grouped by L (runs, each padded to a whole number of
+ROW texels; within a level, those with share 0 apart: their runs read level L alone), so
+within a run the level, its row length and its offset in the flat pyramid are numbers, not
+arrays; `rank` (two int16) takes the runs' results back to map order. With the rank: 14
+bytes per texel.
+
+Two back ends give the same samples (`gather`):
+
+- NumPy (always there): per block of a run, the 8 rows and weights are worked out and read
+  with one `take` and a weighted sum — the arithmetic of `table._bilinear`.
+- OpenCV's `remap` (optional, used when `cv2` imports; VR_GATHER=numpy forces NumPy): each
+  run is two remaps (levels L and L + 1) and a blend (`blendLinear`), and the way back to map
+  order one nearest-pixel remap; level 0 may be the plate itself (`gather`'s `plate`). Its
+  bilinear weights are rounded to 1/32 of a pixel (INTER_BITS = 5): it differs from NumPy's
+  by at most 1/32 of the largest step between neighbouring pixels
+  (tests/engine/test_compact_samples.py measures it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .opencv import backend, cv2
+from .parallel import for_blocks
+from .taps import weighted_sum
+
+ROW = 2048  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
+MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
+BLOCK = 8192  # texels per block of NumPy work: its taps stay in the cache
+
+
+@dataclass(frozen=True, eq=False)
+class Trilinear:
+    """Trilinear samples grouped by their lower mip level (see the module docstring).
+
+    levels: the lower level of each run; starts: run r is rows starts[r] .. starts[r + 1] - 1;
+    singles: whether the run's texels have no share on the next level (read as one sample).
+    x, y: (n,) float32 positions on the run's level (bordered pixel coordinates).
+    upper: (n,) float16, the next level's share.
+    rank: (H, W, 2) int16, each texel's row of the runs as (row % ROW, row // ROW): the
+    runs' results seen as an image ROW wide, a nearest-pixel map back to map order.
+    """
+
+    levels: tuple
+    starts: tuple
+    x: np.ndarray
+    y: np.ndarray
+    upper: np.ndarray
+    rank: np.ndarray
+    singles: tuple = ()  # per run: True when its shares are all 0 (one bilinear sample each)
+
+
+def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
+    """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
+    mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
+    next level, blended by the fraction (as `table._bilinear`); `shape`: the map's (H, W)."""
+    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
+    share = np.clip(lod - lo.astype(np.float32), 0.0, 1.0).astype(np.float16)
+    # Runs by level, and within a level first the texels that read the next level, then those
+    # that do not (share 0: magnified, lod clipped to 0): their runs are one bilinear sample.
+    key = (2 * lo + (share == 0)).astype(np.uint8)
+    counts = np.bincount(key, minlength=2 * top + 2)
+    order = np.argsort(key, kind="stable")  # map order within a run: reads stay local
+    levels, singles, starts = [], [], [0]
+    rank = np.empty((lo.size, 2), np.int16)
+    padded = sum(-(-int(c) // ROW) * ROW for c in counts)
+    x = np.ones(padded, np.float32)  # padding: pixel (0, 0) of the level, share 0
+    y = np.ones(padded, np.float32)
+    upper = np.zeros(padded, np.float16)
+    taken = 0
+    for run, count in enumerate(counts):
+        count = int(count)
+        if not count:
+            continue
+        level = run // 2
+        ids = order[taken : taken + count]
+        taken += count
+        a = starts[-1]
+        scale = np.float32(2.0**-level)
+        x[a : a + count] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
+        y[a : a + count] = py[ids] * scale + np.float32(0.5)
+        upper[a : a + count] = share[ids]
+        rows = np.arange(a, a + count, dtype=np.int64)
+        rank[ids, 0] = rows % ROW
+        rank[ids, 1] = rows // ROW
+        levels.append(level)
+        singles.append(bool(run % 2))
+        starts.append(a + -(-count // ROW) * ROW)
+    if starts[-1] > ROW * MAX_ROWS:
+        raise ValueError(f"{lo.size} texels: more than this table's compact form holds")
+    rank = rank.reshape(tuple(shape) + (2,))
+    for array in (x, y, upper, rank):
+        array.flags.writeable = False
+    return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
+
+
+def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=None) -> None:
+    """out (T, 3) float32 = the samples read from the flat bordered pyramid `source` (levels
+    of `shapes` at row `offsets`), with `use` ("numpy", "opencv"; default `backend()`).
+    `plate`: level 0 itself ((H, W, 3) float32, no border), for OpenCV when `source` does
+    not hold level 0 (its remaps read past the edge as the border does: the edge)."""
+    use = use or backend()
+    if plate is not None and use != "opencv":
+        raise ValueError("the plate as level 0 is for the OpenCV back end")
+    top = len(shapes) - 1
+    values = np.empty((samples.starts[-1], 3), np.float32)
+    for r, level in enumerate(samples.levels):
+        a, b = samples.starts[r], samples.starts[r + 1]
+        nxt = level if samples.singles[r] else min(level + 1, top)
+        if use == "opencv":
+            low, high = (
+                (plate, 1)
+                if v == 0 and plate is not None
+                else (_level(source, shapes, offsets, v), 0)
+                for v in (level, nxt)
+            )  # (image, shift): the plate has no border, its pixel i is the level's i + 1
+            _run_opencv(samples, a, b, low, high, nxt > level, values, samples.singles[r])
+        else:
+            stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
+            start = (int(offsets[level]), int(offsets[nxt]))
+            _run_numpy(
+                samples, a, b, stride, start, nxt > level, source, values, samples.singles[r]
+            )
+    height, width = samples.rank.shape[:2]
+    if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
+        cv = cv2()
+        image = values.reshape(-1, ROW, 3)
+        cv.remap(image, samples.rank, None, cv.INTER_NEAREST, dst=out.reshape(height, width, 3))
+        return
+    rank = samples.rank.reshape(-1, 2)
+
+    def back(a, b):  # the runs' rows -> map order
+        rows = rank[a:b, 1].astype(np.int32)
+        rows *= ROW
+        rows += rank[a:b, 0]
+        np.take(values, rows, axis=0, out=out[a:b])
+
+    for_blocks(back, rank.shape[0], max_rows=BLOCK)
+
+
+def _level(source, shapes, offsets, level):
+    h, w = shapes[level]
+    return source[int(offsets[level]) : int(offsets[level + 1])].reshape(h + 2, w + 2, 3)
+
+
+def _run_numpy(samples, a, b, stride, start, halve, source, values, single=False) -> None:
+    """Rows a .. b - 1 of one run, in blocks over the cores: 8 taps each, one take, a sum."""
+
+    def block(c, d):  # taps plane by plane (8, n): every step works on whole (n,) rows
+        n = d - c
+        taps = 4 if single else 8  # a single run: level L alone, its share 1
+        index = np.empty((taps, n), np.int32)
+        weight = np.empty((taps, n), np.float32)
+        x, y = samples.x[c:d], samples.y[c:d]
+        up = samples.upper[c:d].astype(np.float32)
+        shares = ((0, np.float32(1.0)),) if single else ((0, 1.0 - up), (1, up))
+        for j, share in shares:
+            if j and halve:
+                x = x * np.float32(0.5) + np.float32(0.25)
+                y = y * np.float32(0.5) + np.float32(0.25)
+            x0, y0 = np.floor(x), np.floor(y)
+            ax, ay = x - x0, y - y0
+            base = y0.astype(np.int32)
+            base *= stride[j]
+            base += x0.astype(np.int32)
+            base += start[j]
+            # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
+            k = 4 * j
+            index[k] = base
+            np.add(base, 1, out=index[k + 1])
+            np.add(base, stride[j], out=index[k + 2])
+            np.add(base, stride[j] + 1, out=index[k + 3])
+            bx, by = share - share * ax, 1 - ay  # the level's share folded into x
+            ax *= share
+            np.multiply(bx, by, out=weight[k])
+            np.multiply(ax, by, out=weight[k + 1])
+            np.multiply(bx, ay, out=weight[k + 2])
+            np.multiply(ax, ay, out=weight[k + 3])
+        taps = np.take(source, index, axis=0, mode="clip")
+        weighted_sum(taps, weight, values[c:d], rows_first=False)
+
+    span = b - a
+    for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
+
+
+def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
+    """Rows a .. b - 1 of one run: two remaps (levels L, L + 1: (image, shift) each) and
+    their blend (a single run: one remap)."""
+    cv = cv2()
+    x = samples.x[a:b].reshape(-1, ROW)
+    y = samples.y[a:b].reshape(-1, ROW)
+
+    def remap(image, shift, x, y, dst=None):
+        if shift:
+            x, y = x - np.float32(shift), y - np.float32(shift)
+        return cv.remap(image, x, y, cv.INTER_LINEAR, dst=dst, borderMode=cv.BORDER_REPLICATE)
+
+    if single:
+        remap(*low, x, y, dst=values[a:b].reshape(x.shape + (3,)))
+        return
+    low = remap(*low, x, y)
+    if halve:
+        x = x * np.float32(0.5) + np.float32(0.25)
+        y = y * np.float32(0.5) + np.float32(0.25)
+    high = remap(*high, x, y)
+    # The blend low + up (high - low) as OpenCV's blendLinear, which divides by the weights'
+    # sum + 1e-5: weights scaled by 2^17 make that division exact in float32.
+    up = samples.upper[a:b].reshape(x.shape).astype(np.float32)
+    up *= np.float32(2.0**17)
+    cv.blendLinear(low, high, np.float32(2.0**17) - up, up, dst=values[a:b].reshape(low.shape))
