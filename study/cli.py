@@ -3,6 +3,7 @@
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
+    python -m study scenes --mirror-only [--quick] [--cache DIR] [--out DIR]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -84,6 +85,19 @@ def build_parser() -> argparse.ArgumentParser:
         "DIR/scenes3d_motion.json and the 'In motion' table",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
+    p.add_argument(
+        "--mirror-only",
+        action="store_true",
+        help="a fast loop: only the mirror subject, the default method and the plate mean; "
+        "the plate, truth and plate-mean renders are cached (--cache), so a re-run renders "
+        "only the method; prints the table (with --out: DIR/scenes3d_mirror.json only)",
+    )
+    p.add_argument(
+        "--cache",
+        metavar="DIR",
+        help="with --mirror-only: where the renders are kept (default: "
+        "$TMPDIR/vr_scenes3d_mirror_cache)",
+    )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
@@ -103,7 +117,14 @@ def main(argv=None) -> int:
             from .scenes3d import run_command as run_scenes
 
             try:
-                run_scenes(quick=args.quick, out=args.out, jobs=args.jobs, cases=args.cases)
+                run_scenes(
+                    quick=args.quick,
+                    out=args.out,
+                    jobs=args.jobs,
+                    cases=args.cases,
+                    mirror_only=args.mirror_only,
+                    cache=args.cache,
+                )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
         elif args.command == "sky-prior":

@@ -8,7 +8,8 @@ roughnesses), and every method's render of the subject alone composited over the
 - `report`: summaries, the tables of docs/scenes3d.md, the charts (no bpy).
 
 `python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]` runs
-it (`run_command`); `--cases failures` runs the failure cases instead (issue 11, item 5),
+it (`run_command`); `--mirror-only [--cache DIR]` only the mirror subject with the default
+method and the plate mean, the plate and truth renders cached (`mirror`: a fast loop); `--cases failures` runs the failure cases instead (issue 11, item 5),
 `--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
 issue 11, item 4), `--cases motion` the sequences of a moving subject and camera (`motion`,
 `motion_run`, `motion_report`). Research
@@ -93,6 +94,52 @@ def _json_safe(value):
     return value
 
 
+def default_cache() -> pathlib.Path:
+    """Where `--mirror-only` keeps its plate, truth and plate-mean renders by default."""
+    return pathlib.Path(tempfile.gettempdir()) / "vr_scenes3d_mirror_cache"
+
+
+def run_mirror(config: Config, cache=None, log=None):
+    """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
+    (as `run_study`'s, with the mirror only, the default method and the plate mean)."""
+    try:
+        from . import mirror
+    except ImportError as exc:
+        raise ScenesInputError(f"the 3D study needs the bpy module: {exc}") from exc
+    say = log or (lambda line: print(line, file=sys.stderr, flush=True))
+    cache = pathlib.Path(cache) if cache else default_cache()
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ScenesInputError(f"cannot write in {cache}: {exc.strerror}") from exc
+    work = pathlib.Path(tempfile.mkdtemp(prefix="vr_scenes3d_mirror_"))
+    started = time.perf_counter()
+    try:
+        records, _, methods = mirror.run_scenes(
+            config.specs(), cache, work, config.width, config.samples, say
+        )
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    import bpy
+
+    return {
+        "command": COMMAND + (" --quick" if config.quick else "") + " --mirror-only",
+        "quick": config.quick,
+        "mirror_only": True,
+        "resolution": [config.width, round(config.width / scenes.ASPECT)],
+        "samples": config.samples,
+        "addon_methods": methods,
+        "baselines": [mirror.run.MEAN],
+        "scenes": records,
+        "machine": {
+            "bpy": bpy.app.version_string,
+            "python": platform.python_version(),
+            "cores": os.cpu_count(),
+        },
+        "seconds": time.perf_counter() - started,
+    }
+
+
 def run_study(config: Config, log=None, keep=None):
     """Render and score every scene of ``config``. Returns (data, crops): ``data`` the JSON
     record (``scenes``, ``addon_methods``, ``baselines``, settings, machine, seconds),
@@ -159,12 +206,16 @@ def run_study(config: Config, log=None, keep=None):
     return data, crops
 
 
-def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
+def run_command(
+    quick=False, out=None, jobs=1, log=None, cases="default", mirror_only=False, cache=None
+):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
     the tables of OUT/scenes3d.md and OUT/images/scenes3d_{pareto,examples}.png. With
     ``cases="failures"``: the failure cases, written to OUT/scenes3d_failures.json, the
-    "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png."""
+    "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png.
+    ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``): prints
+    its table, and with ``out`` writes only OUT/scenes3d_mirror(_quick).json."""
     if jobs != 1:
         raise ScenesInputError(
             "--jobs: only 1 is supported (one bpy per process; Cycles already uses every core)"
@@ -179,6 +230,21 @@ def run_command(quick=False, out=None, jobs=1, log=None, cases="default"):
         except motion_report.MotionInputError as exc:
             raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
+    if mirror_only:
+        if cases != "default":
+            raise ScenesInputError("--mirror-only runs the default scenes only (no --cases)")
+        from . import mirror
+
+        data = run_mirror(config, cache=cache, log=log)
+        print(mirror.table(data))
+        print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
+        if out:
+            target = pathlib.Path(out)
+            target.mkdir(parents=True, exist_ok=True)
+            path = target / (config.name.replace("scenes3d", "scenes3d_mirror") + ".json")
+            path.write_text(json.dumps(_json_safe(data), indent=1) + "\n")
+            print(f"wrote {path}", file=sys.stderr)
+        return data, {}
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
         try:

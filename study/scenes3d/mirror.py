@@ -1,0 +1,181 @@
+"""A fast loop for the mirror subject (`python -m study scenes --mirror-only`): per scene only
+the plate, the mirror truth, the plate mean's mirror and the add-on's default method's mirror,
+scored as `run.run_scene` scores them. The plate, truth and plate-mean renders are kept on
+disk (`--cache DIR`), keyed by the scene's description, the render settings, the bpy version
+and the source of the scene builder, so a re-run after a change to the add-on (the sky prior,
+the fill) renders only the default method: ~1.5 min for the 16 scenes instead of ~35 for the
+full study. Its figures match the full run's mirror columns (docs/scenes3d.json) within the
+renderer's noise (docs/scenes3d.md, "The fast mirror loop").
+
+Research only (bpy); run through `study.scenes3d.run_command(mirror_only=True)`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import pathlib
+import time
+
+import bpy
+import numpy as np
+
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
+
+from . import build, run
+from .scenes import Scene3D
+
+MIRROR = "mirror"
+CACHED = ("plate.exr", "plate.png", "truth mirror.exr", "Plate mean mirror.exr")
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+BUILDERS = (ROOT / "study" / "scenes3d" / "build.py", ROOT / "sample_scenes" / "build_scenes.py")
+
+
+def cache_key(spec: Scene3D, width: int, samples: int) -> str:
+    """What the cached renders depend on: the scene, the render settings, the renderer and the
+    code that builds the scene (not the add-on: its render is never cached)."""
+    h = hashlib.sha1()
+    h.update(json.dumps(spec.to_json(), sort_keys=True).encode())
+    h.update(f"{width} {samples} {bpy.app.version_string}".encode())
+    for path in BUILDERS:
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def run_scene(spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width, samples, log):
+    """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
+    method and the plate mean."""
+    started = time.perf_counter()
+    run.new_file()
+    scene, camera, subject, others, dome, material = build.build(spec, width, samples)
+    height = scene.render.resolution_y
+    folder = cache / f"{spec.name}-{cache_key(spec, width, samples)}"
+    hit = all((folder / name).is_file() for name in CACHED)
+    folder.mkdir(parents=True, exist_ok=True)
+    renders = 0
+    border = run.subject_border(scene, camera, subject)
+    crop = run.border_pixels(border, width, height)
+    if not hit:
+        subject.hide_render = True
+        scene.render.film_transparent = False
+        plate = run.render(scene, folder / "plate.exr")[..., :3]
+        run.write_png(folder / "plate.png", plate)
+        subject.hide_render = False
+        build.set_roughness(material, 0.0)
+        truth = run.render(scene, folder / "truth mirror.exr", border)[..., :3]
+        renders += 2
+    else:
+        plate = read_rgba(str(folder / "plate.exr"))[..., :3]
+        truth = read_rgba(str(folder / "truth mirror.exr"))[..., :3]
+    for obj in others:
+        obj.hide_render = True
+    scene.render.film_transparent = True
+    plate8 = srgb_to_linear(read_rgba(str(folder / "plate.png"))[..., :3])
+    if not hit:
+        scene.world = build.mean_world(plate8.reshape(-1, 3).mean(0))
+        mean = run.render(scene, folder / "Plate mean mirror.exr", border)
+        renders += 1
+    else:
+        mean = read_rgba(str(folder / "Plate mean mirror.exr"))
+    scene.world = dome
+
+    label = run.default_method_label(addon)
+    settings = scene.virtual_reflections
+    settings.plate_image = bpy.data.images.load(str(folder / "plate.png"))
+    settings.resolution = "AUTO"
+    settings.method = scene.virtual_reflections.bl_rna.properties["method"].default
+    settings.combine = "REPLACE"
+    subject.virtual_reflections.enabled = True
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    t0 = time.perf_counter()
+    report = addon.generate.generate(scene, depsgraph, [subject])
+    seconds = time.perf_counter() - t0
+    if not report.done:
+        raise RuntimeError(f"{spec.name}: Generate ({label}) made nothing: {report.warnings}")
+    work.mkdir(parents=True, exist_ok=True)
+    method = run.render(scene, work / f"{spec.name} {label}.exr", border)
+    renders += 1
+    addon.generate.remove_all()
+
+    mask = mean[..., 3] > 0.5
+    results, crops = {}, {}
+    y0, y1, x0, x1 = crop
+    for name, rgba in ((label, method), (run.MEAN, mean)):
+        composite = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+        results[name] = run.score(composite, truth, mask, crop)
+        crops[name] = run.to_display(composite[y0:y1, x0:x1])
+    results["(plate itself)"] = run.score(plate, truth, mask, crop)
+    crops["Truth"] = run.to_display(truth[y0:y1, x0:x1])
+    record = {
+        "scene": spec.to_json(),
+        "subject_pixels": int(mask.sum()),
+        "results": {MIRROR: results},
+        "generate_s": {label: {"REPLACE": seconds}},
+        "finite": {label: bool(np.isfinite(method).all())},
+        "warnings": {label: list(report.warnings)} if report.warnings else {},
+        "renders": renders,
+        "cached": hit,
+        "seconds": time.perf_counter() - started,
+        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
+    }
+    log(
+        f"{spec.name}: {mask.sum()} px, mirror PSNR {label} {results[label]['psnr']:.2f}, "
+        f"plate mean {results[run.MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, {renders} "
+        f"renders{', cached' if hit else ''})"
+    )
+    return record, crops
+
+
+def run_scenes(specs, cache, work, width, samples, log):
+    """Every scene's mirror in turn; returns (records, crops, [the default method's label])."""
+    addon = run.Addon()
+    records, crops = [], {}
+    try:
+        label = run.default_method_label(addon)
+        for spec in specs:
+            record, scene_crops = run_scene(
+                spec, addon, pathlib.Path(cache), pathlib.Path(work), width, samples, log
+            )
+            records.append(record)
+            crops[spec.name] = scene_crops
+    finally:
+        run.new_file()
+        addon.close()
+    return records, crops, [label]
+
+
+def table(data) -> str:
+    """Per scene and on average: the default method's and the plate mean's mirror PSNR / SSIM,
+    and how many scenes the default is ahead in."""
+    label = data["addon_methods"][0]
+    rows = [
+        f"| scene | HDRI | {label} PSNR | plate mean PSNR | difference | {label} SSIM | "
+        "plate mean SSIM |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    dp, ds = [], []
+    for record in data["scenes"]:
+        r = record["results"][MIRROR]
+        a, m = r[label], r[run.MEAN]
+        dp.append(a["psnr"] - m["psnr"])
+        ds.append(a["ssim"] - m["ssim"])
+        rows.append(
+            f"| {record['scene']['name']} | {record['scene']['hdri']} | {a['psnr']:.2f} | "
+            f"{m['psnr']:.2f} | {dp[-1]:+.2f} | {a['ssim']:.3f} | {m['ssim']:.3f} |"
+        )
+
+    def mean(key, name):
+        return float(np.mean([s["results"][MIRROR][name][key] for s in data["scenes"]]))
+
+    n = len(data["scenes"])
+    rows.append(
+        f"| mean | | {mean('psnr', label):.2f} | {mean('psnr', run.MEAN):.2f} | "
+        f"{np.mean(dp):+.2f} | {mean('ssim', label):.3f} | {mean('ssim', run.MEAN):.3f} |"
+    )
+    rows.append(
+        f"\nahead of the plate mean: PSNR in {sum(d > 0 for d in dp)}/{n}, SSIM in "
+        f"{sum(d > 0 for d in ds)}/{n}; mean difference {np.mean(dp):+.2f} dB, "
+        f"{np.mean(ds):+.3f} SSIM"
+    )
+    return "\n".join(rows)
