@@ -9,7 +9,8 @@ roughnesses), and every method's render of the subject alone composited over the
 
 `python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]` runs
 it (`run_command`); `--mirror-only [--cache DIR]` only the mirror subject with the default
-method and the plate mean, the plate and truth renders cached (`mirror`: a fast loop); `--cases failures` runs the failure cases instead (issue 11, item 5),
+method and the plate mean, the plate and truth renders cached (`mirror`: a fast loop);
+`--cases failures` runs the failure cases instead (issue 11, item 5),
 `--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
 issue 11, item 4), `--cases motion` the sequences of a moving subject and camera (`motion`,
 `motion_run`, `motion_report`). Research
