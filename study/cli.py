@@ -3,7 +3,7 @@
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
-    python -m study scenes --mirror-only [--quick] [--cache DIR] [--out DIR]
+    python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--out DIR]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -98,6 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --mirror-only: where the renders are kept (default: "
         "$TMPDIR/vr_scenes3d_mirror_cache)",
     )
+    p.add_argument(
+        "--sky-gain",
+        type=float,
+        metavar="G",
+        help="with --mirror-only: build the default method's maps with this sky prior gain "
+        "(Params.sky_gain; default: the add-on's)",
+    )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
@@ -124,6 +131,7 @@ def main(argv=None) -> int:
                     cases=args.cases,
                     mirror_only=args.mirror_only,
                     cache=args.cache,
+                    sky_gain=args.sky_gain,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc

@@ -100,9 +100,10 @@ def default_cache() -> pathlib.Path:
     return pathlib.Path(tempfile.gettempdir()) / "vr_scenes3d_mirror_cache"
 
 
-def run_mirror(config: Config, cache=None, log=None):
+def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
     """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
-    (as `run_study`'s, with the mirror only, the default method and the plate mean)."""
+    (as `run_study`'s, with the mirror only, the default method and the plate mean).
+    ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -117,14 +118,18 @@ def run_mirror(config: Config, cache=None, log=None):
     started = time.perf_counter()
     try:
         records, _, methods = mirror.run_scenes(
-            config.specs(), cache, work, config.width, config.samples, say
+            config.specs(), cache, work, config.width, config.samples, say, sky_gain
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
     import bpy
 
     return {
-        "command": COMMAND + (" --quick" if config.quick else "") + " --mirror-only",
+        "command": COMMAND
+        + (" --quick" if config.quick else "")
+        + " --mirror-only"
+        + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}"),
+        "sky_gain": sky_gain,
         "quick": config.quick,
         "mirror_only": True,
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
@@ -208,15 +213,27 @@ def run_study(config: Config, log=None, keep=None):
 
 
 def run_command(
-    quick=False, out=None, jobs=1, log=None, cases="default", mirror_only=False, cache=None
+    quick=False,
+    out=None,
+    jobs=1,
+    log=None,
+    cases="default",
+    mirror_only=False,
+    cache=None,
+    sky_gain=None,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
     the tables of OUT/scenes3d.md and OUT/images/scenes3d_{pareto,examples}.png. With
     ``cases="failures"``: the failure cases, written to OUT/scenes3d_failures.json, the
     "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png.
-    ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``): prints
-    its table, and with ``out`` writes only OUT/scenes3d_mirror(_quick).json."""
+    ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``, the sky
+    prior's gain ``sky_gain`` if given): prints its table, and with ``out`` writes only
+    OUT/scenes3d_mirror(_quick).json."""
+    if not mirror_only and (cache is not None or sky_gain is not None):
+        raise ScenesInputError("--cache and --sky-gain go with --mirror-only")
+    if sky_gain is not None and not (math.isfinite(sky_gain) and 0.0 <= sky_gain <= 100.0):
+        raise ScenesInputError(f"--sky-gain: 0..100, not {sky_gain}")
     if jobs != 1:
         raise ScenesInputError(
             "--jobs: only 1 is supported (one bpy per process; Cycles already uses every core)"
@@ -236,7 +253,7 @@ def run_command(
             raise ScenesInputError("--mirror-only runs the default scenes only (no --cases)")
         from . import mirror
 
-        data = run_mirror(config, cache=cache, log=log)
+        data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain)
         print(mirror.table(data))
         print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
         if out:

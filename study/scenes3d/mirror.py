@@ -12,7 +12,10 @@ Research only (bpy); run through `study.scenes3d.run_command(mirror_only=True)`.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import hashlib
+import importlib
 import json
 import pathlib
 import time
@@ -127,18 +130,40 @@ def run_scene(spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width,
     return record, crops
 
 
-def run_scenes(specs, cache, work, width, samples, log):
-    """Every scene's mirror in turn; returns (records, crops, [the default method's label])."""
+@contextlib.contextmanager
+def sky_gain(addon: run.Addon, gain):
+    """While inside: the add-on's maps built with Params.sky_gain = ``gain`` (None: as is), by
+    wrapping its `pipeline.map_params` (the one place Generate takes its Params from)."""
+    if gain is None:
+        yield
+        return
+    pipeline = importlib.import_module(f"{addon.module.__name__}.operators.pipeline")
+    original = pipeline.map_params
+
+    def map_params(*args, **kwargs):
+        return dataclasses.replace(original(*args, **kwargs), sky_gain=float(gain))
+
+    pipeline.map_params = map_params
+    try:
+        yield
+    finally:
+        pipeline.map_params = original
+
+
+def run_scenes(specs, cache, work, width, samples, log, gain=None):
+    """Every scene's mirror in turn; returns (records, crops, [the default method's label]).
+    ``gain``: the sky prior's gain for this run (None: the add-on's default)."""
     addon = run.Addon()
     records, crops = [], {}
     try:
         label = run.default_method_label(addon)
-        for spec in specs:
-            record, scene_crops = run_scene(
-                spec, addon, pathlib.Path(cache), pathlib.Path(work), width, samples, log
-            )
-            records.append(record)
-            crops[spec.name] = scene_crops
+        with sky_gain(addon, gain):
+            for spec in specs:
+                record, scene_crops = run_scene(
+                    spec, addon, pathlib.Path(cache), pathlib.Path(work), width, samples, log
+                )
+                records.append(record)
+                crops[spec.name] = scene_crops
     finally:
         run.new_file()
         addon.close()
