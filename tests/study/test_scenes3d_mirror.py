@@ -1,0 +1,79 @@
+"""The fast mirror loop (`python -m study scenes --mirror-only`) on the quick subset: a first run
+renders the plate, the truth, the plate mean and the default method; a second run finds the
+first three in the cache and renders only the method, with the same scores; `--sky-gain`
+changes the method's maps and nothing else. About 40 s on two cores (bpy 4.5); skipped only
+when bpy cannot be imported."""
+
+import math
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from study.scenes3d import QUICK
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+LABEL = "Camera View + Ground"
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    pytest.importorskip("bpy", reason="the 3D study renders with the bpy module")
+    from study.scenes3d import run_command
+
+    cache = tmp_path_factory.mktemp("mirror_cache")
+    out = tmp_path_factory.mktemp("mirror_out")
+    first, _ = run_command(quick=True, mirror_only=True, cache=cache, out=out, log=lambda _: None)
+    again, _ = run_command(quick=True, mirror_only=True, cache=cache, log=lambda _: None)
+    dark, _ = run_command(
+        quick=True, mirror_only=True, cache=cache, sky_gain=0.0, log=lambda _: None
+    )
+    return first, again, dark, out
+
+
+def test_the_first_run_renders_four_and_the_second_only_the_method(runs):
+    first, again, _, out = runs
+    assert len(first["scenes"]) == len(QUICK.specs())
+    assert [r["renders"] for r in first["scenes"]] == [4] * len(QUICK.specs())
+    assert [r["renders"] for r in again["scenes"]] == [1] * len(QUICK.specs())
+    assert all(r["cached"] for r in again["scenes"]) and not any(
+        r["cached"] for r in first["scenes"]
+    )
+    assert first["addon_methods"] == [LABEL]
+    assert (out / "scenes3d_mirror_quick.json").stat().st_size > 500
+
+
+def test_cached_renders_score_as_the_fresh_ones(runs):
+    first, again, _, _ = runs
+    for a, b in zip(first["scenes"], again["scenes"]):
+        ra, rb = a["results"]["mirror"], b["results"]["mirror"]
+        assert ra["Plate mean"] == rb["Plate mean"]
+        assert ra["(plate itself)"] == rb["(plate itself)"]
+        assert abs(ra[LABEL]["psnr"] - rb[LABEL]["psnr"]) < 0.05
+        assert all(math.isfinite(ra[LABEL][m]) for m in ("psnr", "ssim", "si_rmse"))
+        # the method is not the plate: an empty render would score exactly the plate
+        assert ra[LABEL] != ra["(plate itself)"]
+
+
+def test_a_black_sky_prior_changes_only_the_method(runs):
+    first, _, dark, _ = runs
+    assert dark["sky_gain"] == 0.0 and "--sky-gain 0" in dark["command"]
+    changed = 0
+    for a, b in zip(first["scenes"], dark["scenes"]):
+        ra, rb = a["results"]["mirror"], b["results"]["mirror"]
+        assert ra["Plate mean"] == rb["Plate mean"]
+        changed += abs(ra[LABEL]["psnr"] - rb[LABEL]["psnr"]) > 0.1
+    assert changed >= 1  # the quick scenes' plates do not show all their sky
+
+
+def test_cache_and_sky_gain_need_mirror_only_in_one_line():
+    for extra in (["--cache", "/tmp/x"], ["--mirror-only", "--sky-gain", "-1"]):
+        r = subprocess.run(
+            [sys.executable, "-m", "study", "scenes", "--quick", *extra],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
