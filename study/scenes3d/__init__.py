@@ -251,9 +251,9 @@ def run_command(
     if mirror_only:
         if cases != "default":
             raise ScenesInputError("--mirror-only runs the default scenes only (no --cases)")
-        from . import mirror
-
         data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain)
+        from . import mirror  # bpy is importable: run_mirror said so
+
         print(mirror.table(data))
         print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
         if out:
