@@ -34,7 +34,7 @@ from .taps import weighted_sum
 
 ROW = 2048  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
 MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
-BLOCK = 8192  # texels per block of NumPy work: its taps stay in the cache
+BLOCK = 32768  # texels per block of NumPy work (8192 was 15-25 % slower: more Python per tap)
 
 
 @dataclass(frozen=True, eq=False)
