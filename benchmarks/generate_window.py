@@ -8,43 +8,22 @@ two ticks, i.e. the longest time the window could not draw.
 Prints one line per run; the figures are in docs/benchmarks.md."""
 
 import importlib
-import importlib.util
 import json
+import os
 import sys
 import time
 
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from window_probe import Ticker, load_addon, view3d_context  # noqa: E402
+
 root = sys.argv[sys.argv.index("--") + 1]
-spec = importlib.util.spec_from_file_location(
-    "vr_bench_addon", root + "/__init__.py", submodule_search_locations=[root]
-)
-addon = importlib.util.module_from_spec(spec)
-sys.modules[spec.name] = addon
-spec.loader.exec_module(addon)
-addon.register()
-generate = importlib.import_module("vr_bench_addon.operators.generate")
+generate = load_addon(root)
 lookup_table = importlib.import_module("vr_bench_addon.virtual_reflections").lookup_table
-
-ticks = []
+ticker = Ticker(generate)
 results = {}
-
-
-stages = []  # (time, the stage under way) at each tick
-
-
-def tick():
-    ticks.append(time.perf_counter())
-    job = generate.running()
-    stages.append((ticks[-1], job.stage if job else None))
-    return 0.01
-
-
-def context():
-    win = bpy.context.window_manager.windows[0]
-    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
-    return bpy.context.temp_override(window=win, area=area)
 
 
 def setup():
@@ -58,19 +37,14 @@ def setup():
     scene.virtual_reflections.plate_image = plate
     scene.virtual_reflections.resolution = "4096"
     scene.render.resolution_x, scene.render.resolution_y = 3840, 2160
-    bpy.app.timers.register(tick, first_interval=0.01)
+    ticker.start()
     bpy.app.timers.register(blocking, first_interval=0.5)
-
-
-def longest_gap(since):
-    t = [x for x in ticks if x >= since]
-    return max(np.diff(t)) if len(t) > 1 else float("nan")
 
 
 def blocking():
     lookup_table.cache_clear()
     started = time.perf_counter()
-    with context():
+    with view3d_context():
         bpy.ops.vr.generate("EXEC_DEFAULT")
     results["blocking_total_s"] = time.perf_counter() - started
     bpy.ops.vr.remove()
@@ -78,10 +52,10 @@ def blocking():
 
 
 def measure_blocking(started):
-    results["blocking_longest_gap_s"] = longest_gap(started - 0.02)
+    results["blocking_longest_gap_s"] = ticker.longest_gap(started - 0.02)
     lookup_table.cache_clear()
     results["_started"] = time.perf_counter()
-    with context():
+    with view3d_context():
         bpy.ops.vr.generate("INVOKE_DEFAULT")
     bpy.app.timers.register(wait, first_interval=0.05)
 
@@ -91,9 +65,9 @@ def wait():
         return 0.05
     started = results.pop("_started")
     results["window_total_s"] = time.perf_counter() - started
-    results["window_longest_gap_s"] = longest_gap(started)
+    results["window_longest_gap_s"] = ticker.longest_gap(started)
     results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
-    seen = [(t, st) for t, st in stages if t >= started]
+    seen = [(t, st) for t, st in ticker.stages if t >= started]
     gaps = [(b[0] - a[0], a[1]) for a, b in zip(seen, seen[1:], strict=False)]
     print("LONGEST GAP AFTER STAGE", max(gaps, key=lambda g: g[0])[1], flush=True)
     print("RESULT=" + json.dumps({k: round(v, 3) for k, v in results.items()}), flush=True)

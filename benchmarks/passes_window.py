@@ -8,45 +8,23 @@ gap between two ticks, i.e. the longest time the window could not draw.
 Two mirror spheres over a 1920 x 1080 plate, a 960 x 540 Cycles render (SAMPLES samples, 64 by
 default, no denoising), 2 passes. Prints one line; the figures are in docs/benchmarks.md."""
 
-import importlib
-import importlib.util
 import json
+import os
 import sys
 import time
 
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from window_probe import Ticker, load_addon, view3d_context  # noqa: E402
+
 args = sys.argv[sys.argv.index("--") + 1 :]
 root = args[0]
 samples = int(args[1]) if len(args) > 1 else 64
-spec = importlib.util.spec_from_file_location(
-    "vr_bench_addon", root + "/__init__.py", submodule_search_locations=[root]
-)
-addon = importlib.util.module_from_spec(spec)
-sys.modules[spec.name] = addon
-spec.loader.exec_module(addon)
-addon.register()
-generate = importlib.import_module("vr_bench_addon.operators.generate")
-
-ticks = []
+generate = load_addon(root)
+ticker = Ticker(generate)
 results = {"samples": samples}
-
-
-stages = []  # (time, the stage under way) at each tick
-
-
-def tick():
-    ticks.append(time.perf_counter())
-    job = generate.running()
-    stages.append((ticks[-1], job.stage if job else None))
-    return 0.01
-
-
-def context():
-    win = bpy.context.window_manager.windows[0]
-    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
-    return bpy.context.temp_override(window=win, area=area)
 
 
 def setup():
@@ -70,18 +48,13 @@ def setup():
     scene.render.resolution_x, scene.render.resolution_y = 960, 540
     scene.cycles.samples = samples
     scene.cycles.use_denoising = False
-    bpy.app.timers.register(tick, first_interval=0.01)
+    ticker.start()
     bpy.app.timers.register(blocking, first_interval=0.5)
-
-
-def longest_gap(since):
-    t = [x for x in ticks if x >= since]
-    return max(np.diff(t)) if len(t) > 1 else float("nan")
 
 
 def blocking():
     started = time.perf_counter()
-    with context():
+    with view3d_context():
         bpy.ops.vr.render_passes("EXEC_DEFAULT", passes=2)
     results["blocking_total_s"] = time.perf_counter() - started
     bpy.ops.vr.remove()
@@ -89,9 +62,9 @@ def blocking():
 
 
 def measure_blocking(started):
-    results["blocking_longest_gap_s"] = longest_gap(started - 0.02)
+    results["blocking_longest_gap_s"] = ticker.longest_gap(started - 0.02)
     results["_started"] = time.perf_counter()
-    with context():
+    with view3d_context():
         bpy.ops.vr.render_passes("INVOKE_DEFAULT", passes=2)
     bpy.app.timers.register(wait, first_interval=0.05)
 
@@ -101,12 +74,9 @@ def wait():
         return 0.05
     started = results.pop("_started")
     results["window_total_s"] = time.perf_counter() - started
-    results["window_longest_gap_s"] = longest_gap(started)
+    results["window_longest_gap_s"] = ticker.longest_gap(started)
     results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
-    seen = [(t, st) for t, st in stages if t >= started]
-    spent = {}
-    for a, b in zip(seen, seen[1:], strict=False):
-        spent[a[1]] = spent.get(a[1], 0.0) + b[0] - a[0]
+    spent = ticker.spent(started)
     for stage, seconds in sorted(spent.items(), key=lambda x: -x[1])[:8]:
         print(f"STAGE {seconds:7.2f} s  {stage}", flush=True)
     print("RESULT=" + json.dumps({k: round(v, 3) for k, v in results.items()}), flush=True)

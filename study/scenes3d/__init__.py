@@ -122,8 +122,6 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    import bpy
-
     return {
         "command": COMMAND
         + (" --quick" if config.quick else "")
@@ -137,12 +135,19 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
         "addon_methods": methods,
         "baselines": [mirror.run.MEAN],
         "scenes": records,
-        "machine": {
-            "bpy": bpy.app.version_string,
-            "python": platform.python_version(),
-            "cores": os.cpu_count(),
-        },
+        "machine": _machine(),
         "seconds": time.perf_counter() - started,
+    }
+
+
+def _machine() -> dict:
+    """What the figures were measured on (bpy is importable once a run has rendered)."""
+    import bpy
+
+    return {
+        "bpy": bpy.app.version_string,
+        "python": platform.python_version(),
+        "cores": os.cpu_count(),
     }
 
 
@@ -171,8 +176,6 @@ def run_study(config: Config, log=None, keep=None):
     finally:
         if not keep:
             shutil.rmtree(work, ignore_errors=True)
-    import bpy
-
     failures = config.cases == "failures"
     data = {
         "command": COMMAND
@@ -189,11 +192,7 @@ def run_study(config: Config, log=None, keep=None):
         "baselines": list(run.BASELINES),
         "metrics": list(run.METRICS),
         "scenes": records,
-        "machine": {
-            "bpy": bpy.app.version_string,
-            "python": platform.python_version(),
-            "cores": os.cpu_count(),
-        },
+        "machine": _machine(),
         "seconds": time.perf_counter() - started,
     }
     if config.cases == "inter":

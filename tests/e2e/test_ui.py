@@ -147,7 +147,10 @@ def test_redo_brings_the_maps_pixels_back(blender_gui, tmp_path):
     assert abs(result["redone"] - result["generated"]) < 0.05 * result["generated"], result
 
 
-MODAL_SCRIPT = r"""
+# What the scripts run in Blender's window share: the extension loaded from the checkout, a
+# step that prints its error as the RESULT line and quits, the panel's draws counted while a
+# run is under way (its progress bar).
+WINDOW_PREAMBLE = r"""
 import bpy, importlib, importlib.util, json, sys
 root = sys.argv[sys.argv.index("--") + 1]
 spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
@@ -156,14 +159,31 @@ addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
 spec.loader.exec_module(addon); addon.register()
 generate = importlib.import_module("vr_ui_addon.operators.generate")
 panel = importlib.import_module("vr_ui_addon.ui.panel")
+
+def guarded(step):
+    def run():
+        try:
+            return step()
+        except Exception as exc:
+            import traceback; traceback.print_exc()
+            print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
+            bpy.ops.wm.quit_blender()
+    return run
+
+def record_panel_draws(result):
+    draw = panel.VR_PT_main.draw
+    def recording_draw(self, context):
+        draw(self, context)
+        result["drawn_running"] += generate.running() is not None
+    panel.VR_PT_main.draw = recording_draw
+"""
+
+
+MODAL_SCRIPT = (
+    WINDOW_PREAMBLE
+    + r"""
 result = {"stages": [], "drawn_running": 0}
-draw = panel.VR_PT_main.draw
-
-def recording_draw(self, context):  # the panel drawn while Generate runs: its progress bar
-    draw(self, context)
-    result["drawn_running"] += generate.running() is not None
-
-panel.VR_PT_main.draw = recording_draw
+record_panel_draws(result)
 
 def snapshot():
     sphere = bpy.data.objects["Sphere"]
@@ -196,16 +216,6 @@ def setup():
     bpy.context.window_manager.windows[0].event_simulate(type="ESC", value="PRESS")
     bpy.app.timers.register(guarded(after_cancel), first_interval=1.0)
 
-def guarded(step):
-    def run():
-        try:
-            return step()
-        except Exception as exc:
-            import traceback; traceback.print_exc()
-            print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
-            bpy.ops.wm.quit_blender()
-    return run
-
 def after_cancel():
     result["running_after_esc"] = generate.running() is not None
     result["after_esc"] = snapshot()
@@ -233,6 +243,7 @@ def watch():
 
 bpy.app.timers.register(guarded(setup), first_interval=0.5)
 """
+)
 
 
 def test_generate_from_the_window_shows_its_stages_and_esc_stops_it(blender, tmp_path):
@@ -267,23 +278,11 @@ def test_generate_from_the_window_shows_its_stages_and_esc_stops_it(blender, tmp
     assert "Traceback" not in r.stderr, r.stderr[-3000:]  # the panel drew every stage
 
 
-PASSES_SCRIPT = r"""
-import bpy, importlib, importlib.util, json, sys
-root = sys.argv[sys.argv.index("--") + 1]
-spec = importlib.util.spec_from_file_location("vr_ui_addon", root + "/__init__.py",
-                                              submodule_search_locations=[root])
-addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
-spec.loader.exec_module(addon); addon.register()
-generate = importlib.import_module("vr_ui_addon.operators.generate")
-panel = importlib.import_module("vr_ui_addon.ui.panel")
+PASSES_SCRIPT = (
+    WINDOW_PREAMBLE
+    + r"""
 result = {"stages": [], "drawn_running": 0, "render_job_seen": False}
-draw = panel.VR_PT_main.draw
-
-def recording_draw(self, context):  # the panel drawn while the passes run: its progress bar
-    draw(self, context)
-    result["drawn_running"] += generate.running() is not None
-
-panel.VR_PT_main.draw = recording_draw
+record_panel_draws(result)
 
 def snapshot():
     render = bpy.context.scene.render
@@ -305,16 +304,6 @@ def invoke():
     area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
     with bpy.context.temp_override(window=win, area=area):
         return sorted(bpy.ops.vr.render_passes("INVOKE_DEFAULT", passes=3))
-
-def guarded(step):
-    def run():
-        try:
-            return step()
-        except Exception as exc:
-            import traceback; traceback.print_exc()
-            print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
-            bpy.ops.wm.quit_blender()
-    return run
 
 def finish():
     print("RESULT=" + json.dumps(result), flush=True)
@@ -391,6 +380,7 @@ def watch():
 
 bpy.app.timers.register(guarded(setup), first_interval=0.5)
 """
+)
 
 
 def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(blender, tmp_path):
