@@ -50,7 +50,10 @@ class Snapshot:
 
     def restore(self) -> int:
         """Put the reflections back as they were; returns how many objects changed back."""
-        save_dir = maps.save_folder(self._scene.virtual_reflections)
+        try:
+            save_dir = maps.save_folder(self._scene.virtual_reflections)
+        except ValueError:  # maps saved beside an unsaved .blend: kept in memory, packed at save
+            save_dir = None
         changed = 0
         for kept in self._kept:
             obj = kept.obj

@@ -439,3 +439,19 @@ def test_a_failed_run_from_the_operator_puts_the_scene_back(interreflect, monkey
         bpy.ops.vr.render_passes(passes=2)
     assert len(calls) == 2  # it failed in pass 2, after pass 1 attached the maps
     assert scene_state() == before
+
+
+def test_a_run_refused_for_unsaved_map_files_leaves_the_scene_as_it_was(interreflect):
+    """Maps saved as files beside a .blend never saved: Generate (pass 1) refuses in one line,
+    and putting the scene back does not trip over the same folder."""
+    scene = make_scene()
+    plate_image(colourful_plate())
+    for obj in two_objects():
+        obj.select_set(True)
+    assert not bpy.data.filepath
+    scene.virtual_reflections.map_storage = "FILES"
+    before = scene_state()
+    with pytest.raises(RuntimeError, match="save the .blend first") as error:
+        bpy.ops.vr.render_passes(passes=2)
+    assert "Traceback" not in str(error.value), str(error.value)  # the report, not a crash
+    assert scene_state() == before
