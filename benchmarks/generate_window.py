@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from window_probe import Ticker, load_addon, view3d_context  # noqa: E402
+from window_probe import Ticker, load_addon, view3d_context, window_figures  # noqa: E402
 
 root = sys.argv[sys.argv.index("--") + 1]
 generate = load_addon(root)
@@ -64,9 +64,7 @@ def wait():
     if generate.running() is not None:
         return 0.05
     started = results.pop("_started")
-    results["window_total_s"] = time.perf_counter() - started
-    results["window_longest_gap_s"] = ticker.longest_gap(started)
-    results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
+    window_figures(results, ticker, started)
     seen = [(t, st) for t, st in ticker.stages if t >= started]
     gaps = [(b[0] - a[0], a[1]) for a, b in zip(seen, seen[1:], strict=False)]
     print("LONGEST GAP AFTER STAGE", max(gaps, key=lambda g: g[0])[1], flush=True)

@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from window_probe import Ticker, load_addon, view3d_context  # noqa: E402
+from window_probe import Ticker, load_addon, view3d_context, window_figures  # noqa: E402
 
 args = sys.argv[sys.argv.index("--") + 1 :]
 root = args[0]
@@ -73,9 +73,7 @@ def wait():
     if generate.running() is not None:
         return 0.05
     started = results.pop("_started")
-    results["window_total_s"] = time.perf_counter() - started
-    results["window_longest_gap_s"] = ticker.longest_gap(started)
-    results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
+    window_figures(results, ticker, started)
     spent = ticker.spent(started)
     for stage, seconds in sorted(spent.items(), key=lambda x: -x[1])[:8]:
         print(f"STAGE {seconds:7.2f} s  {stage}", flush=True)

@@ -55,6 +55,14 @@ class Ticker:
         return out
 
 
+def window_figures(results: dict, ticker: Ticker, started: float) -> None:
+    """Put the window run's total and longest gap (since ``started``) into ``results``, beside
+    the blocking run's ("blocking_longest_gap_s"), and their ratio."""
+    results["window_total_s"] = time.perf_counter() - started
+    results["window_longest_gap_s"] = ticker.longest_gap(started)
+    results["ratio_gap"] = results["blocking_longest_gap_s"] / results["window_longest_gap_s"]
+
+
 def view3d_context():
     """A context override as the 3D view's sidebar button gives its operator."""
     win = bpy.context.window_manager.windows[0]

@@ -309,11 +309,9 @@ class Job:
                 "INVOKE_DEFAULT", write_still=True, scene=scene, layer=layer
             )
         except BaseException:
-            self._end_render()
-            self.stop()
+            self.stop()  # also takes the cancel handler off
             raise
         if "CANCELLED" in started:
-            self._end_render()
             self.stop()
             raise ValueError("Blender could not start the render")
 

@@ -151,7 +151,7 @@ def pass_steps(
 ):
     """`render_passes` as a generator of `generate.Step`s, returning what it returns: the
     operator runs it step by step from the window (generate.Job), the maps' engine work in a
-    thread and each render between two redraws. ``done`` counts passes: pass k runs from
+    thread and each render as Blender's render job. ``done`` counts passes: pass k runs from
     (k - 1) / limit to k / limit of the whole (limit: r, or ``r_max`` for "auto").
 
     Closed between steps (Esc), it restores the render settings and removes its temporary

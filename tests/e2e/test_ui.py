@@ -148,8 +148,8 @@ def test_redo_brings_the_maps_pixels_back(blender_gui, tmp_path):
 
 
 # What the scripts run in Blender's window share: the extension loaded from the checkout, a
-# step that prints its error as the RESULT line and quits, the panel's draws counted while a
-# run is under way (its progress bar).
+# step that prints its error as the RESULT line and quits, the panel opened and its draws
+# counted while a run is under way (its progress bar).
 WINDOW_PREAMBLE = r"""
 import bpy, importlib, importlib.util, json, sys
 root = sys.argv[sys.argv.index("--") + 1]
@@ -169,6 +169,13 @@ def guarded(step):
             print("RESULT=" + json.dumps({"error": repr(exc)}), flush=True)
             bpy.ops.wm.quit_blender()
     return run
+
+def open_panel():
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    region = next(r for r in area.regions if r.type == "WINDOW")
+    with bpy.context.temp_override(window=win, area=area, region=region):
+        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)
 
 def record_panel_draws(result):
     draw = panel.VR_PT_main.draw
@@ -220,11 +227,7 @@ def after_cancel():
     result["running_after_esc"] = generate.running() is not None
     result["after_esc"] = snapshot()
     result["invoke"] = invoke()
-    win = bpy.context.window_manager.windows[0]
-    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
-    region = next(r for r in area.regions if r.type == "WINDOW")
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)  # drawn as it runs
+    open_panel()  # drawn as it runs
     bpy.app.timers.register(guarded(watch), first_interval=0.01)
 
 def watch():
@@ -358,11 +361,7 @@ def stop_in(stage, key, then):
 
 def full_run():
     result["invoke"] = invoke()
-    win = bpy.context.window_manager.windows[0]
-    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
-    region = next(r for r in area.regions if r.type == "WINDOW")
-    with bpy.context.temp_override(window=win, area=area, region=region):
-        bpy.ops.wm.call_panel(name="VR_PT_main", keep_open=True)  # drawn as it runs
+    open_panel()  # drawn as it runs
     bpy.app.timers.register(guarded(watch), first_interval=0.01)
 
 def watch():
