@@ -16,6 +16,20 @@ meet the ground in front of the camera; the map (the camera view with the world'
 fills the rest. The render camera's transform is applied at render time (as for the map),
 so a moving object or camera needs no new lookup; the lens (fx, fy, cx, cy) is the one at
 Generate.
+
+The plate was shot without the object, so the ground it shows is lit as if the object were
+not there; in the render the object hides part of the sky from the ground around it (its
+contact shadow), which is what a mirror's lowest part reflects. `ensure_occlusion_group`
+darkens the ground point G by the share of its sky the object hides, the object taken as the
+ellipsoid in its bounding box (a sphere's is exact) under an even sky:
+
+    q = (G in object space - box centre) / box half size     (|q| = 1 on the ellipsoid)
+    d = box centre in world space - G,  cos = d.z / |d|
+    F = min(1, max(cos, 0) / |q|^2)       a sphere's form factor, (r / |d|)^2 cos, with
+                                          r = |d| / |q| the ellipsoid's radius toward G
+    ground x (1 - F)
+
+Taken in the object's space, it follows the object at render time as the lookup does.
 """
 
 from dataclasses import dataclass
@@ -23,8 +37,9 @@ from dataclasses import dataclass
 from .nodes import find_or_new_group, math_node, new_node, vector_math_node
 
 GROUND_GROUP = "VR Ground"
+OCCLUSION_GROUP = "VR Ground Occlusion"
 MARGIN = 0.25  # plate heights past the border over which the ground fades (as ground.py)
-_VERSION = 1
+_VERSION = 2  # 2: the ground group gives its Point; the occlusion group
 
 
 @dataclass(frozen=True)
@@ -49,7 +64,21 @@ class GroundLookup:
         """A string that changes when anything the node tree holds changes."""
         values = (self.height, *self.focal, *self.centre, self.aspect)
         rounded = ",".join(f"{v:.6g}" for v in values)
-        return f"{self.plate.name}|{rounded}|{self.frames}"
+        return f"{self.plate.name}|{rounded}|{self.frames}|occlusion"
+
+
+def occluder(obj) -> tuple:
+    """(centre, half size) of ``obj``'s bounding box in its own space: the ellipsoid that
+    hides the sky from the ground around it (`ensure_occlusion_group`); a zero half size, for
+    an object without a box, hides nothing."""
+    corners = [tuple(c) for c in getattr(obj, "bound_box", ())]
+    if not corners:
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    low = [min(c[i] for c in corners) for i in range(3)]
+    high = [max(c[i] for c in corners) for i in range(3)]
+    centre = tuple((a + b) / 2 for a, b in zip(low, high))
+    half = tuple((b - a) / 2 for a, b in zip(low, high))
+    return centre, half
 
 
 def ensure_ground_group():
@@ -58,8 +87,9 @@ def ensure_ground_group():
     Inputs: ``Position`` and ``Direction`` (world space), ``Height`` (the ground's world Z),
     ``Focal`` (fx / W, fy / H, 0), ``Centre`` (cx / W, 1 - cy / H, 0): the principal point in
     texture coordinates, ``Aspect`` (W / H).
-    Outputs: ``UV`` (the plate's texture coordinates of the ground point) and ``Weight`` (of
-    the ground: 1 on the plate, 0 where the ray misses the ground or the point is far off it).
+    Outputs: ``UV`` (the plate's texture coordinates of the ground point), ``Weight`` (of
+    the ground: 1 on the plate, 0 where the ray misses the ground or the point is far off it)
+    and ``Point`` (the ground point, world space).
     """
     group = find_or_new_group(GROUND_GROUP, "ground", _VERSION)
     if group.nodes:
@@ -76,6 +106,7 @@ def ensure_ground_group():
         iface.new_socket(name, in_out="INPUT", socket_type=kind)
     iface.new_socket("UV", in_out="OUTPUT", socket_type="NodeSocketVector")
     iface.new_socket("Weight", in_out="OUTPUT", socket_type="NodeSocketFloat")
+    iface.new_socket("Point", in_out="OUTPUT", socket_type="NodeSocketVector")
 
     nodes, links = group.nodes, group.links
     g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1400, 0))
@@ -101,6 +132,7 @@ def ensure_ground_group():
     ahead = math_node(nodes, links, "GREATER_THAN", "Ground Ahead", (-600, 300), t, 0.0)
     travel = vector_math_node(nodes, links, "SCALE", "Along Ray", (-600, 100), direction, t)
     hit = vector_math_node(nodes, links, "ADD", "Ground Point", (-400, 100), position, travel)
+    links.new(hit, g_out.inputs["Point"])
 
     # The camera sees it at (x, y, z): renderer camera space, x right, y up, z forward.
     to_cam = new_node(nodes, "ShaderNodeVectorTransform", "World to Camera", (-200, 100))
@@ -163,9 +195,67 @@ def _outside(nodes, links, value, axis, location):
     return math_node(nodes, links, "MAXIMUM", f"{axis} Outside", (x + 300, y), past, 0.0)
 
 
-def mix_ground(nodes, links, position, direction, colour, ground, location):
+def ensure_occlusion_group():
+    """The shader node group "VR Ground Occlusion": how much of a ground point's sky the shaded
+    object leaves (the module's docstring).
+
+    Inputs: ``Point`` (the ground point, world space), ``Box Centre`` and ``Box Half Size``
+    (the object's bounding box in its own space; a zero half size hides nothing).
+    Output: ``Sky`` (1 - the share hidden, 0..1).
+    """
+    group = find_or_new_group(OCCLUSION_GROUP, "ground occlusion", _VERSION)
+    if group.nodes:
+        return group
+    iface = group.interface
+    for name in ("Point", "Box Centre", "Box Half Size"):
+        iface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
+    iface.new_socket("Sky", in_out="OUTPUT", socket_type="NodeSocketFloat")
+
+    nodes, links = group.nodes, group.links
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1000, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (1000, 0))
+    point = g_in.outputs["Point"]
+
+    local = new_node(nodes, "ShaderNodeVectorTransform", "World to Object", (-800, 200))
+    local.vector_type, local.convert_from, local.convert_to = "POINT", "WORLD", "OBJECT"
+    links.new(point, local.inputs["Vector"])
+    q = vector_math_node(
+        nodes,
+        links,
+        "SUBTRACT",
+        "From Centre",
+        (-600, 200),
+        local.outputs["Vector"],
+        g_in.outputs["Box Centre"],
+    )
+    q = vector_math_node(
+        nodes, links, "DIVIDE", "In Box Halves", (-400, 200), q, g_in.outputs["Box Half Size"]
+    )
+    q2 = vector_math_node(nodes, links, "DOT_PRODUCT", "|q|^2", (-200, 200), q, q)
+
+    centre = new_node(nodes, "ShaderNodeVectorTransform", "Centre in World", (-800, -100))
+    centre.vector_type, centre.convert_from, centre.convert_to = "POINT", "OBJECT", "WORLD"
+    links.new(g_in.outputs["Box Centre"], centre.inputs["Vector"])
+    d = vector_math_node(
+        nodes, links, "SUBTRACT", "To Centre", (-600, -100), centre.outputs["Vector"], point
+    )
+    unit = vector_math_node(nodes, links, "NORMALIZE", "To Centre Unit", (-400, -100), d)
+    up = new_node(nodes, "ShaderNodeSeparateXYZ", "Up Share", (-200, -100))
+    links.new(unit, up.inputs["Vector"])
+    cos = math_node(nodes, links, "MAXIMUM", "Cos", (0, -100), up.outputs["Z"], 0.0)
+    # Safe divide: |q|^2 = 0 (a zero half size) gives 0, nothing hidden.
+    share = math_node(nodes, links, "DIVIDE", "Form Factor", (200, 0), cos, q2)
+    share = math_node(nodes, links, "MINIMUM", "Hidden", (400, 0), share, 1.0)
+    sky = math_node(nodes, links, "SUBTRACT", "Sky", (600, 0), 1.0, share)
+    links.new(sky, g_out.inputs["Sky"])
+    return group
+
+
+def mix_ground(nodes, links, position, direction, colour, ground, location, box=None):
     """The map's ``colour`` with the ground of ``ground`` (a GroundLookup) mixed in along the
-    ray from ``position`` in ``direction`` (world-space sockets). Returns the colour socket."""
+    ray from ``position`` in ``direction`` (world-space sockets). ``box``: (centre, half size)
+    sockets of the shaded object's box (`occluder`), which darkens the ground around it.
+    Returns the colour socket."""
     x, y = location
     lookup = new_node(nodes, "ShaderNodeGroup", GROUND_GROUP, (x, y))
     lookup.node_tree = ensure_ground_group()
@@ -186,11 +276,19 @@ def mix_ground(nodes, links, position, direction, colour, ground, location):
         user.frame_duration, user.frame_start, user.frame_offset = duration, start, offset
         user.use_cyclic, user.use_auto_refresh = cyclic, True
     links.new(lookup.outputs["UV"], plate.inputs["Vector"])
+    seen = plate.outputs["Color"]
+    if box is not None:
+        shade = new_node(nodes, "ShaderNodeGroup", OCCLUSION_GROUP, (x + 200, y - 300))
+        shade.node_tree = ensure_occlusion_group()
+        links.new(lookup.outputs["Point"], shade.inputs["Point"])
+        links.new(box[0], shade.inputs["Box Centre"])
+        links.new(box[1], shade.inputs["Box Half Size"])
+        seen = vector_math_node(
+            nodes, links, "SCALE", "Ground Shaded", (x + 350, y - 150), seen, shade.outputs["Sky"]
+        )
 
     # colour + weight (plate - colour)
-    step = vector_math_node(
-        nodes, links, "SUBTRACT", "Ground - Map", (x + 400, y), plate.outputs["Color"], colour
-    )
+    step = vector_math_node(nodes, links, "SUBTRACT", "Ground - Map", (x + 400, y), seen, colour)
     step = vector_math_node(
         nodes, links, "SCALE", "Ground Share", (x + 550, y), step, lookup.outputs["Weight"]
     )

@@ -39,13 +39,14 @@ import math
 
 import bpy
 
-from .ground_nodes import mix_ground
+from .ground_nodes import mix_ground, occluder
 from .images import CREATED
 from .nodes import find_or_new_group, math_node, new_node
 
 LOOKUP_GROUP = "VR Camera LatLong"
 LATLONG_GROUP = "VR LatLong"
 REFLECTION_GROUP = "VR Reflection"
+BOX_INPUTS = ("Box Centre", "Box Half Size")  # the reflection group's, with the ground
 WORLD_NAME = "VR World"
 MODES = ("REPLACE", "MODULATE", "MIX", "WORLD")
 REFLECTABLE = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}  # object types with a surface
@@ -207,6 +208,10 @@ def _ensure_reflection_group(mode, image, ground=None):
     if mode == "MIX":
         ior = iface.new_socket("IOR", in_out="INPUT", socket_type="NodeSocketFloat")
         ior.default_value, ior.min_value, ior.max_value = 1.45, 1.0, 100.0
+    if ground is not None:
+        # The shaded object's bounding box (its own space): its contact shadow on the ground.
+        for name in BOX_INPUTS:
+            iface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
     iface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
 
     nodes, links = group.nodes, group.links
@@ -226,7 +231,10 @@ def _ensure_reflection_group(mode, image, ground=None):
     env = _env_lookup(nodes, links, reflect.outputs["Vector"], image, (-300, 300))
     if ground is not None:
         position = geometry.outputs["Position"]
-        env = mix_ground(nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600))
+        box = tuple(g_in.outputs[name] for name in BOX_INPUTS)
+        env = mix_ground(
+            nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600), box
+        )
 
     emission = new_node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))
     if mode == "MODULATE":
@@ -476,7 +484,7 @@ def _material_copy(obj, source, mode, group, strength, ior):
         if not _USE_NODES_DEPRECATED and not copy.use_nodes:
             _nodes_from_settings(copy)
     copy[CREATED] = "material"
-    _wire(copy.node_tree, mode, group, strength, ior, fallback)
+    _wire(copy.node_tree, mode, group, strength, ior, fallback, occluder(obj))
     if mode in ("REPLACE", "MODULATE") and hasattr(copy, "cycles"):
         # The emission is the reflection, not a light: don't let Cycles sample it as one
         # (light sampling of map-textured emission made renders 2-3x slower).
@@ -498,8 +506,9 @@ def _nodes_from_settings(mat):
     tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
 
 
-def _wire(tree, mode, group, strength, ior, fallback_color):
-    """Insert a group node between each active Material Output and what fed its Surface."""
+def _wire(tree, mode, group, strength, ior, fallback_color, box):
+    """Insert a group node between each active Material Output and what fed its Surface.
+    box: the object's (centre, half size), for a group that reads the ground."""
     nodes, links = tree.nodes, tree.links
     outputs = [n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output]
     if not outputs:
@@ -512,6 +521,9 @@ def _wire(tree, mode, group, strength, ior, fallback_color):
         node.node_tree = group
         node.location = (out.location.x, out.location.y + 250)
         node.inputs["Strength"].default_value = strength
+        if BOX_INPUTS[0] in node.inputs:
+            for name, value in zip(BOX_INPUTS, box):
+                node.inputs[name].default_value = value
         if mode == "MIX":
             node.inputs["IOR"].default_value = ior
             if source is not None:
@@ -584,7 +596,7 @@ def _remove_unused_groups(*groups):
         if group is not None and group.get(CREATED) == "reflection" and group.users == 0:
             bpy.data.node_groups.remove(group)
     # Outer before inner: the inner one is used by the outer.
-    for kind in ("lookup", "latlong", "ground"):
+    for kind in ("lookup", "latlong", "ground", "ground occlusion"):
         for group in list(bpy.data.node_groups):
             if group.get(CREATED) == kind and group.users == 0:
                 bpy.data.node_groups.remove(group)

@@ -24,15 +24,20 @@ def red_at(x, y):
     return (np.floor(x / SQUARE) + np.floor(y / SQUARE)) % 2 == 0
 
 
-def make_shot(combine="REPLACE", method="GROUND"):
+def make_shot(combine="REPLACE", method="GROUND", colour=None):
     bpy.ops.mesh.primitive_uv_sphere_add(
         segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
     )
-    return make_shot_on(bpy.context.scene, bpy.context.active_object, combine, method)
+    return make_shot_on(bpy.context.scene, bpy.context.active_object, combine, method, colour)
 
 
-def make_shot_on(scene, ball, combine="REPLACE", method="GROUND"):
-    """Camera, plate and Generate for ``ball`` (a sphere at CENTRE)."""
+def checker(x, y):
+    return np.where(red_at(x, y)[..., None], RED, BLUE)
+
+
+def make_shot_on(scene, ball, combine="REPLACE", method="GROUND", colour=None):
+    """Camera, plate (the ground ``colour(x, y)``, by default the checker) and Generate for
+    ``ball`` (a sphere at CENTRE)."""
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
@@ -48,8 +53,7 @@ def make_shot_on(scene, ball, combine="REPLACE", method="GROUND"):
     settings.method = method
     settings.combine = combine
     settings.resolution = "512"
-    colour = lambda x, y: np.where(red_at(x, y)[..., None], RED, BLUE)  # noqa: E731
-    settings.plate_image = ground_plate(scene, 0.0, colour, SKY)
+    settings.plate_image = ground_plate(scene, 0.0, colour or checker, SKY)
     report = addon_part("operators.generate").generate(
         scene, bpy.context.evaluated_depsgraph_get(), [ball]
     )
@@ -147,6 +151,28 @@ def test_the_map_seen_from_the_centre_gets_the_contact_wrong(addon, tmp_path):
     red_seen = rgba[..., 0] > rgba[..., 2]
     assert parallax.sum() > 30, parallax.sum()
     assert (red_seen == expected)[parallax].mean() < 0.5
+
+
+def test_the_ground_around_the_object_is_darkened_by_the_sky_it_hides(addon, tmp_path):
+    """The plate was shot without the ball; in the render the ball hides part of the sky from
+    the ground around it. On a plain grey ground each pixel reflecting the ground must show
+    grey x (1 - F), F = (r / d)^2 cos: the share of an even sky a sphere of radius r hides
+    from a ground point at distance d, at angle acos(cos) from straight up."""
+    grey = 0.5
+    scene, _, _ = make_shot(colour=lambda x, y: np.full((*np.shape(x), 3), grey))
+    rgba = render(scene, tmp_path)
+    hit, surface, _, down = traced(scene)
+    inside = rgba[..., 3] > 0.999
+    to_centre = CENTRE - surface
+    d = np.linalg.norm(to_centre, axis=-1)
+    hidden = np.clip((RADIUS / d) ** 2 * np.maximum(to_centre[..., 2], 0) / d, 0, 1)
+    seen = rgba[..., :3].mean(-1) / grey
+    near = hit & inside & down & (hidden > 0.25)
+    far = hit & inside & down & (hidden < 0.02)
+    assert near.sum() > 40 and far.sum() > 40, (near.sum(), far.sum())
+    assert np.abs(seen[near] - (1 - hidden[near])).mean() < 0.05
+    assert seen[near].mean() < 0.7  # a real darkening, not a rounding
+    assert np.abs(seen[far] - 1).mean() < 0.03
 
 
 def test_the_replace_map_is_the_same_for_every_pose(addon):
