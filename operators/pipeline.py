@@ -159,11 +159,15 @@ def ground_height(scene, depsgraph, objects) -> float:
     return min(float(bounds.world_box(o, depsgraph)[0][2]) for o in objects)
 
 
+def objects_box(depsgraph, objects) -> tuple:
+    """((3,) low, (3,) high) world-space corners of the bounding box of ``objects`` (evaluated)."""
+    boxes = [bounds.world_box(o, depsgraph) for o in objects]
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
 def objects_centre(depsgraph, objects) -> np.ndarray:
     """(3,) world-space centre of the bounding box of ``objects`` (evaluated)."""
-    boxes = [bounds.world_box(o, depsgraph) for o in objects]
-    low = np.min([b[0] for b in boxes], axis=0)
-    high = np.max([b[1] for b in boxes], axis=0)
+    low, high = objects_box(depsgraph, objects)
     return 0.5 * (low + high)
 
 
@@ -221,7 +225,10 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
     # jitter that moves the object by less than a pixel does not rebuild the map.
     step = 0.25 * max(origin[2], 1e-3) / view.params.intrinsics[0]
-    ground = tuple(round(v / step) * step for v in (*origin, float(centre[2]) - floor))
+    low, high = objects_box(depsgraph, objects)
+    height = float(centre[2]) - floor
+    radius = min(0.5 * float(high[2] - low[2]), height)  # their contact shadow's sphere
+    ground = tuple(round(v / step) * step for v in (*origin, height, radius))
     return dataclasses.replace(view.params, method="ground", ground=ground, up=up)
 
 

@@ -22,9 +22,18 @@ over `MARGIN` of the plate's height past the border, into the fill (by elevation
 world's horizon, `Params.up`), so there is no seam; texels whose ground point is behind the
 camera, or that point up, are the camera view's as before.
 
-What it does not model: the object's own shadow and contact (the plate has no object), things
-standing on the ground (they are read where the camera sees them, as part of the ground), and
-the ground hidden from the camera by something in front of it.
+The object's contact shadow: the plate was shot without the object, so the ground it shows is
+lit as if the object were not there. In the render the object hides part of the sky from the
+ground around it. The object taken as a sphere of radius r (`Params.ground`'s fifth value,
+else `height`: resting on the ground) at the map's origin, a ground point at distance
+t = height / sin(b) along d (b its angle below the horizon) sees it under the form factor
+(r / t)^2 cos = (r / height)^2 sin(b)^3; the ground's taps are weighted by the sky left,
+1 - that (`sky_left`), under an even sky (the per-shading-point lookup does the same with the
+object's box, operators/ground_nodes.py).
+
+What it does not model: the object's shadow from a directional light (a sun), things standing
+on the ground (they are read where the camera sees them, as part of the ground), and the
+ground hidden from the camera by something in front of it.
 """
 
 from __future__ import annotations
@@ -57,6 +66,16 @@ def ground_points(directions, ground, up):
     return points, hits & (points[..., 2] > 1e-6)
 
 
+def sky_left(sine_below, ground):
+    """(...,) float32: the share of an even sky that a sphere at the map's origin (``ground``:
+    Params.ground) leaves a ground point seen from there at an angle b below the horizon
+    (``sine_below`` = sin b): 1 - min(1, (r / height)^2 sin(b)^3) (the module's docstring)."""
+    height = float(ground[3])
+    radius = float(ground[4]) if len(ground) > 4 else height
+    s = np.clip(np.asarray(sine_below, np.float64), 0.0, 1.0)
+    return (1.0 - np.minimum((radius / height) ** 2 * s**3, 1.0)).astype(np.float32)
+
+
 def ground_pixels(directions, ground, up, intrinsics):
     """((...,) px, (...,) py, (...,) bool valid): the plate positions of the ground points of
     ``directions`` (continuous plate pixels; meaningless where not valid)."""
@@ -82,8 +101,8 @@ def ground_taps(
 ):
     """The ground's part of a table: (ids (G,) int64 texels whose ground point the plate shows or
     nearly, weight (G,) float32 of the ground in them (`ground_weight`), index (G, 4 n^2) int32
-    and taps' weights (G, 4 n^2) float32 summing to 1: n x n bilinear samples over the texel's
-    footprint on the ground, on mip levels ``first`` .. ``last``)."""
+    and taps' weights (G, 4 n^2) float32 summing to the sky left (`sky_left`): n x n bilinear
+    samples over the texel's footprint on the ground, on mip levels ``first`` .. ``last``)."""
     px, py, valid = ground_pixels(directions, ground, up, intrinsics)
     weight = ground_weight(px, py, valid, width, height)
     ids = np.flatnonzero(weight > 0)
@@ -115,6 +134,9 @@ def ground_taps(
     rect = np.stack((np.zeros_like(span), np.maximum(span, 1.0), np.zeros_like(span), span))
     level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
     index, taps_weight = mean_taps(positions, level, shapes, offsets)
+    d = np.asarray(directions[ids], np.float64)
+    sine = -(d @ _unit(up)) / np.linalg.norm(d, axis=-1)
+    taps_weight *= sky_left(sine, ground)[:, None]
     return ids, weight[ids], index, taps_weight
 
 
@@ -177,4 +199,6 @@ def ground_taps_latlong(size, ground, up, intrinsics, width, height, shapes, off
     rect = np.stack((np.zeros_like(span), np.maximum(span, 1.0), np.zeros_like(span), span))
     level = np.clip(supersample_levels(rect, shapes, SAMPLES), first, last).astype(np.int32)
     index, taps_weight = mean_taps(positions, level, shapes, offsets)
+    corner_down = [down[a : a + h, b : b + size].ravel()[ids] for a in (0, 1) for b in (0, 1)]
+    taps_weight *= sky_left(-0.25 * sum(corner_down), ground)[:, None]
     return ids, weight.ravel()[ids], index, taps_weight

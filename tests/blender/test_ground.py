@@ -114,13 +114,27 @@ def test_a_chosen_ground_object_sets_the_plane(addon, chosen):
     """The ball floats 0.3 above the Floor (ground red nearer the camera than Y = -0.8). With
     the Floor chosen the ground is read at the Floor's height: the ray toward (0.1, -1, -0.3)
     meets it at Y = -1 (red). Without, the ball's lowest point (Z = 0) is taken for the
-    ground, and the same ray meets that at Y = -0.625, which shows blue."""
+    ground, and the same ray meets that at Y = -0.625, which shows blue. Both darkened by the
+    ball's contact shadow, the share of the sky a sphere of the ball's radius hides there."""
     scene, ball = make_shot(ground_object=True, red=lambda x, y: y < -0.8)
     if chosen:
         scene.virtual_reflections.ground_object = bpy.data.objects["Floor"]
     image = generate(scene, ball)
     got = map_colour(image, toward(scene, ball, (0.1, -1.0, -0.3)))
-    np.testing.assert_allclose(got, RED if chosen else BLUE, atol=0.1)
+    np.testing.assert_allclose(
+        got, np.multiply(RED if chosen else BLUE, sky_left(chosen)), atol=0.1
+    )
+
+
+def sky_left(chosen):
+    """The contact shadow of the ball (radius 0.5, centre Z 0.5) on the ground point the ray
+    toward (0.1, -1, -0.3) meets: 1 - (r / t)^2 cos (the form factor of a sphere)."""
+    centre = np.array((0.0, 0.0, 0.5))
+    d = np.array((0.1, -1.0, -0.3)) - centre
+    floor = -0.3 if chosen else 0.0
+    point = centre + d * (floor - centre[2]) / d[2]
+    t = np.linalg.norm(point - centre)
+    return 1.0 - (0.5 / t) ** 2 * (centre[2] - floor) / t
 
 
 def test_live_update_and_every_frame_follow_the_ground(addon):
