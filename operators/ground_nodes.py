@@ -39,7 +39,7 @@ from .nodes import find_or_new_group, math_node, new_node, vector_math_node
 GROUND_GROUP = "VR Ground"
 OCCLUSION_GROUP = "VR Ground Occlusion"
 MARGIN = 0.25  # plate heights past the border over which the ground fades (as ground.py)
-_VERSION = 2  # 2: the ground group gives its Point; the occlusion group
+_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -87,9 +87,8 @@ def ensure_ground_group():
     Inputs: ``Position`` and ``Direction`` (world space), ``Height`` (the ground's world Z),
     ``Focal`` (fx / W, fy / H, 0), ``Centre`` (cx / W, 1 - cy / H, 0): the principal point in
     texture coordinates, ``Aspect`` (W / H).
-    Outputs: ``UV`` (the plate's texture coordinates of the ground point), ``Weight`` (of
-    the ground: 1 on the plate, 0 where the ray misses the ground or the point is far off it)
-    and ``Point`` (the ground point, world space).
+    Outputs: ``UV`` (the plate's texture coordinates of the ground point) and ``Weight`` (of
+    the ground: 1 on the plate, 0 where the ray misses the ground or the point is far off it).
     """
     group = find_or_new_group(GROUND_GROUP, "ground", _VERSION)
     if group.nodes:
@@ -106,7 +105,6 @@ def ensure_ground_group():
         iface.new_socket(name, in_out="INPUT", socket_type=kind)
     iface.new_socket("UV", in_out="OUTPUT", socket_type="NodeSocketVector")
     iface.new_socket("Weight", in_out="OUTPUT", socket_type="NodeSocketFloat")
-    iface.new_socket("Point", in_out="OUTPUT", socket_type="NodeSocketVector")
 
     nodes, links = group.nodes, group.links
     g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1400, 0))
@@ -132,7 +130,6 @@ def ensure_ground_group():
     ahead = math_node(nodes, links, "GREATER_THAN", "Ground Ahead", (-600, 300), t, 0.0)
     travel = vector_math_node(nodes, links, "SCALE", "Along Ray", (-600, 100), direction, t)
     hit = vector_math_node(nodes, links, "ADD", "Ground Point", (-400, 100), position, travel)
-    links.new(hit, g_out.inputs["Point"])
 
     # The camera sees it at (x, y, z): renderer camera space, x right, y up, z forward.
     to_cam = new_node(nodes, "ShaderNodeVectorTransform", "World to Camera", (-200, 100))
@@ -199,22 +196,51 @@ def ensure_occlusion_group():
     """The shader node group "VR Ground Occlusion": how much of a ground point's sky the shaded
     object leaves (the module's docstring).
 
-    Inputs: ``Point`` (the ground point, world space), ``Box Centre`` and ``Box Half Size``
-    (the object's bounding box in its own space; a zero half size hides nothing).
+    Inputs: ``Position`` and ``Direction`` (world space) and ``Height`` as the ground group's
+    (the ray meets the ground at G), ``Box Centre`` and ``Box Half Size`` (the object's
+    bounding box in its own space; a zero half size hides nothing). A group of its own, so the
+    ground group of files saved before it is untouched.
     Output: ``Sky`` (1 - the share hidden, 0..1).
     """
     group = find_or_new_group(OCCLUSION_GROUP, "ground occlusion", _VERSION)
     if group.nodes:
         return group
     iface = group.interface
-    for name in ("Point", "Box Centre", "Box Half Size"):
-        iface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
+    for name, kind in (
+        ("Position", "NodeSocketVector"),
+        ("Direction", "NodeSocketVector"),
+        ("Height", "NodeSocketFloat"),
+        ("Box Centre", "NodeSocketVector"),
+        ("Box Half Size", "NodeSocketVector"),
+    ):
+        iface.new_socket(name, in_out="INPUT", socket_type=kind)
     iface.new_socket("Sky", in_out="OUTPUT", socket_type="NodeSocketFloat")
 
     nodes, links = group.nodes, group.links
     g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1000, 0))
     g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (1000, 0))
-    point = g_in.outputs["Point"]
+    # G = P + t R, t = (height - P.z) / R.z (where the ray misses the ground the ground
+    # group's weight is 0, so what this gives there is never seen).
+    p = new_node(nodes, "ShaderNodeSeparateXYZ", "P", (-1400, 300))
+    links.new(g_in.outputs["Position"], p.inputs["Vector"])
+    r = new_node(nodes, "ShaderNodeSeparateXYZ", "R", (-1400, 100))
+    links.new(g_in.outputs["Direction"], r.inputs["Vector"])
+    rise = math_node(
+        nodes,
+        links,
+        "SUBTRACT",
+        "Ground Below",
+        (-1250, 300),
+        g_in.outputs["Height"],
+        p.outputs["Z"],
+    )
+    t = math_node(nodes, links, "DIVIDE", "Distance", (-1100, 300), rise, r.outputs["Z"])
+    travel = vector_math_node(
+        nodes, links, "SCALE", "Along Ray", (-1100, 100), g_in.outputs["Direction"], t
+    )
+    point = vector_math_node(
+        nodes, links, "ADD", "Ground Point", (-950, 200), g_in.outputs["Position"], travel
+    )
 
     local = new_node(nodes, "ShaderNodeVectorTransform", "World to Object", (-800, 200))
     local.vector_type, local.convert_from, local.convert_to = "POINT", "WORLD", "OBJECT"
@@ -280,7 +306,9 @@ def mix_ground(nodes, links, position, direction, colour, ground, location, box=
     if box is not None:
         shade = new_node(nodes, "ShaderNodeGroup", OCCLUSION_GROUP, (x + 200, y - 300))
         shade.node_tree = ensure_occlusion_group()
-        links.new(lookup.outputs["Point"], shade.inputs["Point"])
+        links.new(position, shade.inputs["Position"])
+        links.new(direction, shade.inputs["Direction"])
+        shade.inputs["Height"].default_value = ground.height
         links.new(box[0], shade.inputs["Box Centre"])
         links.new(box[1], shade.inputs["Box Half Size"])
         seen = vector_math_node(
