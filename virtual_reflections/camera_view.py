@@ -48,7 +48,8 @@ import math
 
 import numpy as np
 
-from .layouts import cube_directions, latlong_directions
+from .layouts import cube_directions
+from .parallel import CHUNK, for_blocks
 
 FILL_BINS = 181  # the fill profile: 1-degree bins of camera-frame elevation, -90 .. 90
 FILL_ROWS = 96  # the fill is computed on the first mip level at most this many rows high
@@ -132,6 +133,25 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
     return position.reshape(-1, 2), angle.ravel(), inside.ravel()
 
 
+def latlong_rows_near_view(size: int, width, height, intrinsics, reach: float) -> tuple:
+    """(first, stop): the rows of a `size`-wide lat-long (the camera frame's) with a texel
+    centre less than `reach` radians from the plate's view (or in it), one row of margin
+    each side. A direction's angle to its clamped twin is at least their difference in
+    elevation, and the clamped elevation lies between the frame's lowest bottom and highest
+    top (`clamp_to_view_latlong`), so the other rows are farther than `reach` everywhere."""
+    fx, fy, cx, cy = intrinsics
+    h = size // 2
+    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
+    cos_a = np.cos(np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx)))
+    low = float(np.arctan((cy - height) / fy * cos_a).min())
+    high = float(np.arctan(cy / fy * cos_a).max())
+    el = -np.pi * ((np.arange(h) + 0.5) / h - 0.5)
+    rows = np.flatnonzero((el > low - reach) & (el < high + reach))
+    if not rows.size:
+        return 0, 0
+    return max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, h)
+
+
 def plate_positions(
     directions: np.ndarray,
     width: int,
@@ -172,8 +192,18 @@ def fade_weight(angle: np.ndarray, fade_deg: float) -> np.ndarray:
 def directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float):
     """Directions (n, 3) through the texels `ids` (flat indices) shifted by (dx, dy) texels."""
     if layout == "latlong":
+        # The trigonometry per row and per column of the map (as latlong_directions takes
+        # it, so the values are the same), each texel a product of its row's and column's.
         row, col = np.divmod(ids, size)
-        return latlong_directions(col + 0.5 + dx, row + 0.5 + dy, size)
+        h = size // 2
+        lat = -np.pi * ((np.arange(h) + 0.5 + dy) / h - 0.5)
+        lon = -2.0 * np.pi * ((np.arange(size) + 0.5 + dx) / size - 0.5)
+        cos_lat = np.cos(lat)[row]
+        out = np.empty((len(ids), 3), np.float64)
+        np.multiply(np.sin(lon)[col], cos_lat, out=out[:, 0])
+        out[:, 1] = np.sin(lat)[row]
+        np.multiply(np.cos(lon)[col], cos_lat, out=out[:, 2])
+        return out
     row, col = np.divmod(ids, size)
     face, frow = np.divmod(row, size)
     return cube_directions(face, col + dx, frow + dy, size)
@@ -268,17 +298,24 @@ def supersample_positions(layout, size, ids, intrinsics, n: int = SUPERSAMPLE, p
     """The n x n sample positions of `supersample_taps`: n^2 pairs of (S,) plate
     coordinates (px, py) at level 0's scale."""
     fx, fy, cx, cy = intrinsics
-    positions = []
-    for sy in range(n):
-        for sx in range(n):
-            d = directions_at(layout, size, ids, (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5)
-            if project is None:
-                z = np.where(d[:, 2] > 1e-9, d[:, 2], 1e-9)
-                px = np.clip(cx - fx * d[:, 0] / z, 0, None)
-                py = np.clip(cy - fy * d[:, 1] / z, 0, None)
-            else:
-                px, py = project(d)
-            positions.append((px, py))
+    count = len(ids)
+    positions = [(np.empty(count), np.empty(count)) for _ in range(n * n)]
+
+    def block(a, b):  # texels a .. b - 1, over the cores
+        for sy in range(n):
+            for sx in range(n):
+                d = directions_at(
+                    layout, size, ids[a:b], (sx + 0.5) / n - 0.5, (sy + 0.5) / n - 0.5
+                )
+                px, py = positions[sy * n + sx]
+                if project is None:
+                    z = np.where(d[:, 2] > 1e-9, d[:, 2], 1e-9)
+                    px[a:b] = np.clip(cx - fx * d[:, 0] / z, 0, None)
+                    py[a:b] = np.clip(cy - fy * d[:, 1] / z, 0, None)
+                else:
+                    px[a:b], py[a:b] = project(d)
+
+    for_blocks(block, count, min_rows=4096, max_rows=CHUNK)
     return positions
 
 

@@ -67,15 +67,22 @@ def supersamples(texels, positions, level, shapes, offsets) -> Supersample:
     base = np.empty((count, k), np.int32)
     fx = np.empty((count, k), np.uint16)
     fy = np.empty((count, k), np.uint16)
-    scale = 2.0**-level
-    width = np.array([w for _, w in shapes], np.int64)[level]
-    height = np.array([h for h, _ in shapes], np.int64)[level]
-    start = np.asarray(offsets, np.int64)[level]
-    for j, (px, py) in enumerate(positions):
-        cols, ax = _cell(np.asarray(px, np.float64)[order] * scale + 0.5, width)
-        rows, ay = _cell(np.asarray(py, np.float64)[order] * scale + 0.5, height)
-        base[:, j] = start + rows * (width + 2) + cols
-        fx[:, j], fy[:, j] = ax, ay
+    widths = np.array([w for _, w in shapes], np.int64)
+    heights = np.array([h for h, _ in shapes], np.int64)
+    starts_all = np.asarray(offsets, np.int64)
+
+    def block(a, b):  # texels a .. b - 1 in level order, over the cores
+        lv = level[a:b]
+        scale = 2.0**-lv
+        width, height, start = widths[lv], heights[lv], starts_all[lv]
+        at = order[a:b]
+        for j, (px, py) in enumerate(positions):
+            cols, ax = _cell(np.asarray(px[at], np.float64) * scale + 0.5, width)
+            rows, ay = _cell(np.asarray(py[at], np.float64) * scale + 0.5, height)
+            base[a:b, j] = start + rows * (width + 2) + cols
+            fx[a:b, j], fy[a:b, j] = ax, ay
+
+    for_blocks(block, count, min_rows=BLOCK, max_rows=32 * BLOCK)
     runs, counts = np.unique(level, return_counts=True)
     starts = tuple(np.concatenate(([0], np.cumsum(counts))).tolist())
     ids = np.asarray(texels, np.int64)[order]

@@ -132,12 +132,19 @@ def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
     return mask.reshape(shape)
 
 
-def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
+def _lod(layout: str, size: int, position: np.ndarray, band=None) -> np.ndarray:
     """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32.
-    Computed in slabs of rows (each with its neighbour rows) over the cores."""
+    Computed in slabs of rows (each with its neighbour rows) over the cores; with `band`
+    (first, stop) only those rows (the others 0)."""
     latlong = layout == "latlong"
     height, width = position.shape[:2]
+    first, stop = band or (0, height)
     lod = np.empty((height, width), np.float32)
+    lod[:first] = 0.0
+    lod[stop:] = 0.0
+
+    def band_rows(a, b):
+        rows(first + a, first + b)
 
     def rows(a, b):
         across = _spans(position[a:b], 1, wrap=latlong, block=0)
@@ -146,7 +153,7 @@ def _lod(layout: str, size: int, position: np.ndarray) -> np.ndarray:
         squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
         lod[a:b] = 0.5 * np.log2(squared, dtype=np.float32)
 
-    for_blocks(rows, height, min_rows=16, max_rows=max(1, CHUNK // width))
+    for_blocks(band_rows, stop - first, min_rows=16, max_rows=max(1, CHUNK // width))
     return lod
 
 
@@ -210,16 +217,25 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     angle = np.empty(count, np.float32)
     inside = np.empty(count, bool) if latlong else None
 
+    band = (0, shape[0])  # the rows whose texels may be anything but the fill alone
     if latlong:  # row by row, the trigonometry per row and column
+        if params.extend_fade is not None:
+            reach = math.radians(max(params.extend_fade, 0.0))
+            band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
+            # Outside the band the fill alone: no position needed, no edge extension.
+            position[:] = 0.0
+            angle[:] = np.float32(math.pi)
+            inside[:] = False
+        start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
 
         def project(a, b):
-            rows = slice(a, b)
-            texels = slice(a * size, b * size)
+            rows = slice(start + a, start + b)
+            texels = slice((start + a) * size, (start + b) * size)
             position[texels], angle[texels], inside[texels] = camera_view.clamp_to_view_latlong(
                 size, width, height, intrinsics, rows
             )
 
-        for_blocks(project, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
+        for_blocks(project, stop - start, min_rows=16, max_rows=max(1, CHUNK // size))
     else:
 
         def project(a, b):
@@ -235,7 +251,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     blur = np.minimum(
         np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
     )
-    lod = np.clip(np.maximum(_lod(layout, size, position).ravel(), blur), 0.0, top)
+    lod = np.clip(np.maximum(_lod(layout, size, position, band).ravel(), blur), 0.0, top)
 
     if latlong:
         seen = np.flatnonzero(inside)
@@ -250,10 +266,18 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     unseen = np.ones(count, bool)
     unseen[seen] = False
     filled = params.extend_fade is not None
-    weight_ext = (
-        camera_view.fade_weight(angle, params.extend_fade) if filled else np.ones(count, np.float32)
+    # The edge extension's weight, for the texels it reaches only (the fade is 0 from
+    # extend_fade degrees on): most of a large map is the fill alone.
+    if filled and params.extend_fade > 0:
+        reach = np.float32(math.radians(params.extend_fade))
+        near = np.flatnonzero(unseen & (angle < reach))
+    else:
+        near = np.flatnonzero(unseen & (angle <= 0)) if filled else np.flatnonzero(unseen)
+    near_ext = (
+        camera_view.fade_weight(angle[near], params.extend_fade)
+        if filled
+        else np.ones(near.size, np.float32)
     )
-    near = np.flatnonzero(unseen & (weight_ext > 0))
     used = [int(lod[near].min()) if near.size else top, int(seen_level.min()) if seen.size else top]
     deepest = [
         int(lod[near].max()) + 1 if near.size else 0,
@@ -314,7 +338,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         ext_index[a:b] = idx
 
     for_blocks(trilinear, near.size, max_rows=CHUNK)
-    near_weight[:, :8] = ext_weight * weight_ext[near, None]
+    near_weight[:, :8] = ext_weight * near_ext[:, None]
     groups = []
     fill_texels = None
     if filled:
@@ -340,7 +364,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
             near_fill = all_index[near], all_weight[near]
         near_index[:, 8:] = near_fill[0]
-        near_weight[:, 8:] = near_fill[1] * (1.0 - weight_ext[near, None])
+        near_weight[:, 8:] = near_fill[1] * (1.0 - near_ext[:, None])
     seen_samples = None
     if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
         positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
