@@ -69,31 +69,33 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     key = (2 * lo + (share == 0)).astype(np.uint8)
     counts = np.bincount(key, minlength=2 * top + 2)
     order = np.argsort(key, kind="stable")  # map order within a run: reads stay local
-    levels, singles, starts = [], [], [0]
+    # Each run padded to whole rows of ROW texels; per key its first row in the runs.
+    padded = -(-counts // ROW) * ROW
+    first = np.concatenate(([0], np.cumsum(padded)[:-1]))
+    sorted_first = np.concatenate(([0], np.cumsum(counts)[:-1]))  # where it starts in `order`
+    shift = (first - sorted_first).astype(np.int64)  # the run's row = position in order + shift
+    scales = (2.0 ** -(np.arange(counts.size) // 2)).astype(np.float32)
+    x = np.ones(int(padded.sum()), np.float32)  # padding: pixel (0, 0) of the level, share 0
+    y = np.ones(x.size, np.float32)
+    upper = np.zeros(x.size, np.float16)
     rank = np.empty((lo.size, 2), np.int16)
-    padded = sum(-(-int(c) // ROW) * ROW for c in counts)
-    x = np.ones(padded, np.float32)  # padding: pixel (0, 0) of the level, share 0
-    y = np.ones(padded, np.float32)
-    upper = np.zeros(padded, np.float16)
-    taken = 0
-    for run, count in enumerate(counts):
-        count = int(count)
-        if not count:
-            continue
-        level = run // 2
-        ids = order[taken : taken + count]
-        taken += count
-        a = starts[-1]
-        scale = np.float32(2.0**-level)
-        x[a : a + count] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
-        y[a : a + count] = py[ids] * scale + np.float32(0.5)
-        upper[a : a + count] = share[ids]
-        rows = np.arange(a, a + count, dtype=np.int64)
+
+    def block(a, b):  # positions a .. b - 1 of `order`, over the cores
+        ids = order[a:b]
+        k = key[ids]
+        rows = np.arange(a, b, dtype=np.int64) + shift[k]
+        scale = scales[k]
+        x[rows] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
+        y[rows] = py[ids] * scale + np.float32(0.5)
+        upper[rows] = share[ids]
         rank[ids, 0] = rows % ROW
         rank[ids, 1] = rows // ROW
-        levels.append(level)
-        singles.append(bool(run % 2))
-        starts.append(a + -(-count // ROW) * ROW)
+
+    for_blocks(block, lo.size, min_rows=BLOCK, max_rows=8 * BLOCK)
+    used = np.flatnonzero(counts)
+    levels = [int(run) // 2 for run in used]
+    singles = [bool(run % 2) for run in used]
+    starts = [0, *(int(v) for v in (first + padded)[used])]
     if starts[-1] > ROW * MAX_ROWS:
         raise ValueError(f"{lo.size} texels: more than this table's compact form holds")
     rank = rank.reshape(tuple(shape) + (2,))
