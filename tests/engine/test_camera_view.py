@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from virtual_reflections import Params, environment_map
+from virtual_reflections import camera_view as cv
 from virtual_reflections.camera_view import plate_positions
 
 
@@ -251,7 +252,6 @@ def test_the_lat_long_clamp_per_row_and_column_is_the_general_one(shifted):
     """The lat-long's clamp (trigonometry per row and column) places every texel where the
     general clamp does, finds the same seen texels, and the same angles (but for round-off
     at the threshold of the plate's view)."""
-    from virtual_reflections import camera_view as cv
     from virtual_reflections.layouts import texel_directions
 
     width, height, size = 640, 360, 256
@@ -272,7 +272,6 @@ def test_the_lat_long_clamp_per_row_and_column_is_the_general_one(shifted):
 def test_the_compact_fill_reads_the_profile_as_its_taps_do(up):
     """The lat-long fill kept as one elevation step per texel (or per row) gives the values
     the fill's taps give, to the step's rounding."""
-    from virtual_reflections import camera_view as cv
     from virtual_reflections.layouts import texel_directions
 
     size, width = 128, 640
@@ -289,3 +288,28 @@ def test_the_compact_fill_reads_the_profile_as_its_taps_do(up):
     cv.fill_values(steps, np.repeat(side, 3), cv.fill_lookup(profile), out)
     step = np.abs(np.diff(profile, axis=1)).max()
     assert np.abs(out - expected).max() <= step / cv.FILL_STEPS + 1e-5
+
+
+@pytest.mark.parametrize(
+    "intrinsics, reach_deg",
+    [
+        ((300.0, 300.0, 160.0, 90.0), 20.0),
+        ((150.0, 170.0, 40.0, 150.0), 10.0),
+        ((900.0, 900.0, 160.0, 90.0), 0.0),
+    ],
+)
+def test_the_rows_left_out_of_a_cold_table_are_beyond_the_edge_extension(intrinsics, reach_deg):
+    """The camera view's table projects only `latlong_rows_near_view`'s rows: every texel of
+    the other rows must be farther than the extension's reach from the plate's view (the fill
+    alone there), and the kept rows must hold every texel the plate sees."""
+    size, width, height = 256, 320, 180
+    reach = math.radians(reach_deg)
+    first, stop = cv.latlong_rows_near_view(size, width, height, intrinsics, reach)
+    _, angle, inside = cv.clamp_to_view_latlong(size, width, height, intrinsics)
+    angle, inside = angle.reshape(size // 2, size), inside.reshape(size // 2, size)
+    outside = np.ones(size // 2, bool)
+    outside[first:stop] = False
+    assert 0 < stop - first < size // 2
+    assert (angle[outside] >= reach - 1e-6).all()
+    assert not inside[outside].any()
+    assert inside[first:stop].any()
