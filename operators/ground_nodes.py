@@ -93,43 +93,21 @@ def ensure_ground_group():
     group = find_or_new_group(GROUND_GROUP, "ground", _VERSION)
     if group.nodes:
         return group
-    iface = group.interface
-    for name, kind in (
-        ("Position", "NodeSocketVector"),
-        ("Direction", "NodeSocketVector"),
-        ("Height", "NodeSocketFloat"),
-        ("Focal", "NodeSocketVector"),
-        ("Centre", "NodeSocketVector"),
-        ("Aspect", "NodeSocketFloat"),
-    ):
-        iface.new_socket(name, in_out="INPUT", socket_type=kind)
-    iface.new_socket("UV", in_out="OUTPUT", socket_type="NodeSocketVector")
-    iface.new_socket("Weight", in_out="OUTPUT", socket_type="NodeSocketFloat")
-
+    _new_sockets(
+        group.interface,
+        inputs=(
+            ("Focal", "NodeSocketVector"),
+            ("Centre", "NodeSocketVector"),
+            ("Aspect", "NodeSocketFloat"),
+        ),
+        outputs=(("UV", "NodeSocketVector"), ("Weight", "NodeSocketFloat")),
+    )
     nodes, links = group.nodes, group.links
     g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1400, 0))
     g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (1400, 0))
-    position, direction = g_in.outputs["Position"], g_in.outputs["Direction"]
-
-    # The ray meets the ground: t = (height - P.z) / R.z, for R.z < 0 and t > 0.
-    p = new_node(nodes, "ShaderNodeSeparateXYZ", "P", (-1200, 200))
-    links.new(position, p.inputs["Vector"])
-    r = new_node(nodes, "ShaderNodeSeparateXYZ", "R", (-1200, 0))
-    links.new(direction, r.inputs["Vector"])
-    rise = math_node(
-        nodes,
-        links,
-        "SUBTRACT",
-        "Ground Below",
-        (-1000, 200),
-        g_in.outputs["Height"],
-        p.outputs["Z"],
-    )
-    t = math_node(nodes, links, "DIVIDE", "Distance", (-800, 200), rise, r.outputs["Z"])
+    r, t, hit = _ray_meets_ground(nodes, links, g_in)
     down = math_node(nodes, links, "LESS_THAN", "Ray Goes Down", (-1000, 0), r.outputs["Z"], -1e-6)
     ahead = math_node(nodes, links, "GREATER_THAN", "Ground Ahead", (-600, 300), t, 0.0)
-    travel = vector_math_node(nodes, links, "SCALE", "Along Ray", (-600, 100), direction, t)
-    hit = vector_math_node(nodes, links, "ADD", "Ground Point", (-400, 100), position, travel)
 
     # The camera sees it at (x, y, z): renderer camera space, x right, y up, z forward.
     to_cam = new_node(nodes, "ShaderNodeVectorTransform", "World to Camera", (-200, 100))
@@ -183,6 +161,35 @@ def ensure_ground_group():
     return group
 
 
+def _new_sockets(iface, inputs, outputs):
+    """A ground group's interface: Position, Direction (world space) and Height (the ground's
+    world Z), then ``inputs``; ``outputs``: (name, socket type) pairs."""
+    ray = (("Position", "NodeSocketVector"), ("Direction", "NodeSocketVector"))
+    for name, kind in (*ray, ("Height", "NodeSocketFloat"), *inputs):
+        iface.new_socket(name, in_out="INPUT", socket_type=kind)
+    for name, kind in outputs:
+        iface.new_socket(name, in_out="OUTPUT", socket_type=kind)
+
+
+def _ray_meets_ground(nodes, links, g_in):
+    """Where the ray from the group input's Position along its Direction meets the plane
+    Z = Height: t = (height - P.z) / R.z (meaningful for R.z < 0 and t > 0), G = P + t R.
+    Returns (the Separate XYZ node of R, the t socket, the G socket)."""
+    position, direction = g_in.outputs["Position"], g_in.outputs["Direction"]
+    p = new_node(nodes, "ShaderNodeSeparateXYZ", "P", (-1200, 200))
+    links.new(position, p.inputs["Vector"])
+    r = new_node(nodes, "ShaderNodeSeparateXYZ", "R", (-1200, 0))
+    links.new(direction, r.inputs["Vector"])
+    rise = math_node(
+        nodes, links, "SUBTRACT", "Ground Below", (-1000, 200), g_in.outputs["Height"],
+        p.outputs["Z"],
+    )  # fmt: skip
+    t = math_node(nodes, links, "DIVIDE", "Distance", (-800, 200), rise, r.outputs["Z"])
+    travel = vector_math_node(nodes, links, "SCALE", "Along Ray", (-600, 100), direction, t)
+    hit = vector_math_node(nodes, links, "ADD", "Ground Point", (-400, 100), position, travel)
+    return r, t, hit
+
+
 def _outside(nodes, links, value, axis, location):
     """max(|value - 0.5| - 0.5, 0): how far a texture coordinate is outside [0, 1]."""
     x, y = location
@@ -205,44 +212,18 @@ def ensure_occlusion_group():
     group = find_or_new_group(OCCLUSION_GROUP, "ground occlusion", _VERSION)
     if group.nodes:
         return group
-    iface = group.interface
-    for name, kind in (
-        ("Position", "NodeSocketVector"),
-        ("Direction", "NodeSocketVector"),
-        ("Height", "NodeSocketFloat"),
-        ("Box Centre", "NodeSocketVector"),
-        ("Box Half Size", "NodeSocketVector"),
-    ):
-        iface.new_socket(name, in_out="INPUT", socket_type=kind)
-    iface.new_socket("Sky", in_out="OUTPUT", socket_type="NodeSocketFloat")
-
+    _new_sockets(
+        group.interface,
+        inputs=(("Box Centre", "NodeSocketVector"), ("Box Half Size", "NodeSocketVector")),
+        outputs=(("Sky", "NodeSocketFloat"),),
+    )
     nodes, links = group.nodes, group.links
-    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1000, 0))
-    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (1000, 0))
-    # G = P + t R, t = (height - P.z) / R.z (where the ray misses the ground the ground
-    # group's weight is 0, so what this gives there is never seen).
-    p = new_node(nodes, "ShaderNodeSeparateXYZ", "P", (-1400, 300))
-    links.new(g_in.outputs["Position"], p.inputs["Vector"])
-    r = new_node(nodes, "ShaderNodeSeparateXYZ", "R", (-1400, 100))
-    links.new(g_in.outputs["Direction"], r.inputs["Vector"])
-    rise = math_node(
-        nodes,
-        links,
-        "SUBTRACT",
-        "Ground Below",
-        (-1250, 300),
-        g_in.outputs["Height"],
-        p.outputs["Z"],
-    )
-    t = math_node(nodes, links, "DIVIDE", "Distance", (-1100, 300), rise, r.outputs["Z"])
-    travel = vector_math_node(
-        nodes, links, "SCALE", "Along Ray", (-1100, 100), g_in.outputs["Direction"], t
-    )
-    point = vector_math_node(
-        nodes, links, "ADD", "Ground Point", (-950, 200), g_in.outputs["Position"], travel
-    )
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-1400, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (1900, 0))
+    # Where the ray misses the ground the ground group's weight is 0: never seen.
+    _, _, point = _ray_meets_ground(nodes, links, g_in)
 
-    local = new_node(nodes, "ShaderNodeVectorTransform", "World to Object", (-800, 200))
+    local = new_node(nodes, "ShaderNodeVectorTransform", "World to Object", (100, 200))
     local.vector_type, local.convert_from, local.convert_to = "POINT", "WORLD", "OBJECT"
     links.new(point, local.inputs["Vector"])
     q = vector_math_node(
@@ -250,29 +231,29 @@ def ensure_occlusion_group():
         links,
         "SUBTRACT",
         "From Centre",
-        (-600, 200),
+        (300, 200),
         local.outputs["Vector"],
         g_in.outputs["Box Centre"],
     )
     q = vector_math_node(
-        nodes, links, "DIVIDE", "In Box Halves", (-400, 200), q, g_in.outputs["Box Half Size"]
+        nodes, links, "DIVIDE", "In Box Halves", (500, 200), q, g_in.outputs["Box Half Size"]
     )
-    q2 = vector_math_node(nodes, links, "DOT_PRODUCT", "|q|^2", (-200, 200), q, q)
+    q2 = vector_math_node(nodes, links, "DOT_PRODUCT", "|q|^2", (700, 200), q, q)
 
-    centre = new_node(nodes, "ShaderNodeVectorTransform", "Centre in World", (-800, -100))
+    centre = new_node(nodes, "ShaderNodeVectorTransform", "Centre in World", (100, -100))
     centre.vector_type, centre.convert_from, centre.convert_to = "POINT", "OBJECT", "WORLD"
     links.new(g_in.outputs["Box Centre"], centre.inputs["Vector"])
     d = vector_math_node(
-        nodes, links, "SUBTRACT", "To Centre", (-600, -100), centre.outputs["Vector"], point
+        nodes, links, "SUBTRACT", "To Centre", (300, -100), centre.outputs["Vector"], point
     )
-    unit = vector_math_node(nodes, links, "NORMALIZE", "To Centre Unit", (-400, -100), d)
-    up = new_node(nodes, "ShaderNodeSeparateXYZ", "Up Share", (-200, -100))
+    unit = vector_math_node(nodes, links, "NORMALIZE", "To Centre Unit", (500, -100), d)
+    up = new_node(nodes, "ShaderNodeSeparateXYZ", "Up Share", (700, -100))
     links.new(unit, up.inputs["Vector"])
-    cos = math_node(nodes, links, "MAXIMUM", "Cos", (0, -100), up.outputs["Z"], 0.0)
+    cos = math_node(nodes, links, "MAXIMUM", "Cos", (900, -100), up.outputs["Z"], 0.0)
     # Safe divide: |q|^2 = 0 (a zero half size) gives 0, nothing hidden.
-    share = math_node(nodes, links, "DIVIDE", "Form Factor", (200, 0), cos, q2)
-    share = math_node(nodes, links, "MINIMUM", "Hidden", (400, 0), share, 1.0)
-    sky = math_node(nodes, links, "SUBTRACT", "Sky", (600, 0), 1.0, share)
+    share = math_node(nodes, links, "DIVIDE", "Form Factor", (1100, 0), cos, q2)
+    share = math_node(nodes, links, "MINIMUM", "Hidden", (1300, 0), share, 1.0)
+    sky = math_node(nodes, links, "SUBTRACT", "Sky", (1500, 0), 1.0, share)
     links.new(sky, g_out.inputs["Sky"])
     return group
 
