@@ -62,46 +62,75 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
     mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
     next level, blended by the fraction (as `table._bilinear`); `shape`: the map's (H, W)."""
-    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
-    share = np.clip(lod - lo.astype(np.float32), 0.0, 1.0).astype(np.float16)
+    total = lod.size
+    keys = 2 * top + 2
     # Runs by level, and within a level first the texels that read the next level, then those
     # that do not (share 0: magnified, lod clipped to 0): their runs are one bilinear sample.
-    key = (2 * lo + (share == 0)).astype(np.uint8)
-    counts = np.bincount(key, minlength=2 * top + 2)
-    order = np.argsort(key, kind="stable")  # map order within a run: reads stay local
-    # Each run padded to whole rows of ROW texels; per key its first row in the runs.
+    # Worked in blocks of the map over the cores: each block's keys and counts, then each
+    # texel's row in the runs (a stable order by key: map order within a run, reads local).
+    key = np.empty(total, np.uint8)
+    share = np.empty(total, np.float16)
+    step = 8 * BLOCK
+    blocks = -(-total // step)
+    counts_per = np.zeros((blocks, keys), np.int64)
+
+    def classify(i):
+        a, b = i * step, min((i + 1) * step, total)
+        lo = np.minimum(lod[a:b].astype(np.int32), max(top - 1, 0))
+        share[a:b] = np.clip(lod[a:b] - lo.astype(np.float32), 0.0, 1.0)
+        key[a:b] = 2 * lo + (share[a:b] == 0)
+        counts_per[i] = np.bincount(key[a:b], minlength=keys)
+
+    _each(classify, blocks)
+    counts = counts_per.sum(0)
+    # Each run padded to whole rows of ROW texels; per key its first row in the runs, and
+    # per block where its texels of each key start.
     padded = -(-counts // ROW) * ROW
     first = np.concatenate(([0], np.cumsum(padded)[:-1]))
-    sorted_first = np.concatenate(([0], np.cumsum(counts)[:-1]))  # where it starts in `order`
-    shift = (first - sorted_first).astype(np.int64)  # the run's row = position in order + shift
-    scales = (2.0 ** -(np.arange(counts.size) // 2)).astype(np.float32)
+    starts_per = first + np.cumsum(counts_per, axis=0) - counts_per  # (blocks, keys)
+    scales = (2.0 ** -(np.arange(keys) // 2)).astype(np.float32)
     x = np.ones(int(padded.sum()), np.float32)  # padding: pixel (0, 0) of the level, share 0
     y = np.ones(x.size, np.float32)
     upper = np.zeros(x.size, np.float16)
-    rank = np.empty((lo.size, 2), np.int16)
+    rank = np.empty((total, 2), np.int16)
 
-    def block(a, b):  # positions a .. b - 1 of `order`, over the cores
-        ids = order[a:b]
-        k = key[ids]
-        rows = np.arange(a, b, dtype=np.int64) + shift[k]
-        scale = scales[k]
+    def place(i):
+        a, b = i * step, min((i + 1) * step, total)
+        k = key[a:b]
+        order = np.argsort(k, kind="stable")
+        ids = a + order
+        sorted_k = k[order]
+        # the row: the block's start for the key + the place among the block's texels of it
+        within = np.arange(b - a) - (np.cumsum(counts_per[i]) - counts_per[i])[sorted_k]
+        rows = starts_per[i][sorted_k] + within
+        scale = scales[sorted_k]
         x[rows] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
         y[rows] = py[ids] * scale + np.float32(0.5)
         upper[rows] = share[ids]
         rank[ids, 0] = rows % ROW
         rank[ids, 1] = rows // ROW
 
-    for_blocks(block, lo.size, min_rows=BLOCK, max_rows=8 * BLOCK)
+    _each(place, blocks)
     used = np.flatnonzero(counts)
     levels = [int(run) // 2 for run in used]
     singles = [bool(run % 2) for run in used]
     starts = [0, *(int(v) for v in (first + padded)[used])]
     if starts[-1] > ROW * MAX_ROWS:
-        raise ValueError(f"{lo.size} texels: more than this table's compact form holds")
+        raise ValueError(f"{total} texels: more than this table's compact form holds")
     rank = rank.reshape(tuple(shape) + (2,))
     for array in (x, y, upper, rank):
         array.flags.writeable = False
     return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
+
+
+def _each(fn, count):
+    """fn(i) for i in range(count), over the cores."""
+
+    def run(a, b):
+        for i in range(a, b):
+            fn(i)
+
+    for_blocks(run, count, min_rows=1, max_rows=1)
 
 
 def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=None) -> None:
