@@ -26,6 +26,8 @@ that neighbouring faces meet without seams:
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 
 from .segmentation import Segmentation
@@ -34,6 +36,11 @@ from .segmentation import Segmentation
 def _split(a, at_plus, mid, at_minus):
     """Piecewise-linear map of a in [-1, 1]: -1 -> at_minus, 0 -> mid, +1 -> at_plus."""
     return mid + a * np.where(a >= 0, at_plus - mid, mid - at_minus)
+
+
+def _typed(rect, dtype):
+    """A rectangle's x0, y0, x1, y1 as numbers of ``dtype``."""
+    return SimpleNamespace(**{k: dtype(getattr(rect, k)) for k in ("x0", "y0", "x1", "y1")})
 
 
 def _lerp(a, b, t):
@@ -56,9 +63,11 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
     out = np.empty((d.shape[0], 2), dtype=dtype)
 
-    X, inner = seg.x, seg.inner
-    cx, cy = seg.centre
-    W, H = float(seg.width), float(seg.height)
+    # The segmentation's numbers in the directions' precision: float32 directions are worked
+    # on in float32 (Python floats in np.where would make every temporary float64).
+    X, inner = _typed(seg.x, dtype), _typed(seg.inner, dtype)
+    cx, cy = (dtype(v) for v in seg.centre)
+    W, H = dtype(seg.width), dtype(seg.height)
 
     # Face choice as OpenEXR's CubeMap::faceAndPixelPosition: x wins ties, then y.
     on_x = (ax >= ay) & (ax >= az)
