@@ -222,11 +222,10 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         if params.extend_fade is not None:
             reach = math.radians(max(params.extend_fade, 0.0))
             band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
-            # Outside the band the fill alone: no position needed, no edge extension.
-            position[:] = 0.0
-            angle[:] = np.float32(math.pi)
-            inside[:] = False
         start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
+        # Outside them the fill alone: no position needed, no edge extension.
+        for outside in (slice(0, start * size), slice(stop * size, count)):
+            position[outside], angle[outside], inside[outside] = 0.0, np.float32(math.pi), False
 
         def project(a, b):
             rows = slice(start + a, start + b)
