@@ -136,7 +136,6 @@ def _lod(layout: str, size: int, position: np.ndarray, band=None) -> np.ndarray:
     """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32.
     Computed in slabs of rows (each with its neighbour rows) over the cores; with `band`
     (first, stop) only those rows (the others 0)."""
-    latlong = layout == "latlong"
     height, width = position.shape[:2]
     first, stop = band or (0, height)
     lod = np.empty((height, width), np.float32)
@@ -144,17 +143,22 @@ def _lod(layout: str, size: int, position: np.ndarray, band=None) -> np.ndarray:
     lod[stop:] = 0.0
 
     def band_rows(a, b):
-        rows(first + a, first + b)
-
-    def rows(a, b):
-        across = _spans(position[a:b], 1, wrap=latlong, block=0)
+        a, b = first + a, first + b
         lo, hi = max(a - 1, 0), min(b + 1, height)
-        down = _spans(position[lo:hi], 0, wrap=False, block=0 if latlong else size, start=lo)
-        squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
-        lod[a:b] = 0.5 * np.log2(squared, dtype=np.float32)
+        lod[a:b] = _slab_lod(layout, size, position[lo:hi], lo, a, b)
 
     for_blocks(band_rows, stop - first, min_rows=16, max_rows=max(1, CHUNK // width))
     return lod
+
+
+def _slab_lod(layout: str, size: int, slab: np.ndarray, lo: int, a: int, b: int) -> np.ndarray:
+    """`_lod` of the map's rows a .. b - 1 from `slab`, the positions of rows lo .. lo +
+    len(slab) - 1 (those rows and their neighbours that exist: lo = max(a - 1, 0))."""
+    latlong = layout == "latlong"
+    across = _spans(slab[a - lo : b - lo], 1, wrap=latlong, block=0)
+    down = _spans(slab, 0, wrap=False, block=0 if latlong else size, start=lo)
+    squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
+    return 0.5 * np.log2(squared, dtype=np.float32)
 
 
 def _bilinear(px, py, lod, shapes, offsets, index, weight):
@@ -401,18 +405,21 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     if params.method == "ground":
         return _build_ground(seg, layout, size, params)
     shape = map_shape(layout, size)
-    directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
-    count = directions.shape[0]
-    position = np.empty((count, 2), np.float32)
-
-    def project(a, b):
-        position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
-
-    for_blocks(project, count, max_rows=CHUNK)
-    position = position.reshape(shape + (2,))
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
-    lod = np.clip(_lod(layout, size, position).ravel(), 0.0, top)
+    if layout == "latlong":
+        position, lod = _paper_latlong(seg, size, params.triangles, top)
+    else:
+        directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+        count = directions.shape[0]
+        position = np.empty((count, 2), np.float32)
+
+        def project(a, b):
+            position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
+
+        for_blocks(project, count, max_rows=CHUNK)
+        position = position.reshape(shape + (2,))
+        lod = np.clip(_lod(layout, size, position).ravel(), 0.0, top)
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
@@ -427,6 +434,28 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
         weight=None,
         trilinear=trilinear_samples(px, py, lod, top, shape),
     )
+
+
+def _paper_latlong(seg: Segmentation, size: int, triangles: int, top: int):
+    """The paper's plate positions (H, W, 2) float32 and mip levels (H W,) float32 (clipped
+    to [0, top]) of a `size`-wide lat-long, in slabs of rows over the cores: each slab's
+    directions (the same as `texel_directions`'), projected with its neighbour rows, whose
+    positions its levels read while they are in cache (no map-sized array of directions)."""
+    height, width = map_shape("latlong", size)
+    position = np.empty((height, width, 2), np.float32)
+    lod = np.empty((height, width), np.float32)
+    fx = np.arange(width, dtype=np.float64)[None, :] + 0.5
+
+    def rows(a, b):
+        lo, hi = max(a - 1, 0), min(b + 1, height)
+        fy = np.arange(lo, hi, dtype=np.float64)[:, None] + 0.5
+        slab = plate_positions(latlong_directions(fx, fy, width, np.float32), seg, triangles)
+        position[a:b] = slab[a - lo : b - lo]
+        level = _slab_lod("latlong", size, slab, lo, a, b)
+        np.clip(level, 0.0, top, out=lod[a:b])
+
+    for_blocks(rows, height, min_rows=16, max_rows=max(1, 4 * CHUNK // width))
+    return position, lod.ravel()
 
 
 def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:

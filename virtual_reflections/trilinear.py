@@ -98,17 +98,23 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
         a, b = i * step, min((i + 1) * step, total)
         k = key[a:b]
         order = np.argsort(k, kind="stable")
-        ids = a + order
-        sorted_k = k[order]
-        # the row: the block's start for the key + the place among the block's texels of it
-        within = np.arange(b - a) - (np.cumsum(counts_per[i]) - counts_per[i])[sorted_k]
-        rows = starts_per[i][sorted_k] + within
-        scale = scales[sorted_k]
-        x[rows] = px[ids] * scale + np.float32(0.5)  # +1 border, -0.5 to centres
-        y[rows] = py[ids] * scale + np.float32(0.5)
-        upper[rows] = share[ids]
-        rank[ids, 0] = rows % ROW
-        rank[ids, 1] = rows // ROW
+        # Each key's texels are consecutive in `order` and in the runs (the block's start
+        # for the key + the place among the block's texels of it): written as slices.
+        ends = np.cumsum(counts_per[i])
+        row = np.empty(b - a, np.int32)  # each texel's row of the runs, in map order
+        for kk in np.flatnonzero(counts_per[i]):
+            n = int(counts_per[i][kk])
+            ids = a + order[ends[kk] - n : ends[kk]]
+            start = int(starts_per[i][kk])
+            out = slice(start, start + n)
+            np.multiply(px[ids], scales[kk], out=x[out])
+            x[out] += np.float32(0.5)  # +1 border, -0.5 to centres
+            np.multiply(py[ids], scales[kk], out=y[out])
+            y[out] += np.float32(0.5)
+            upper[out] = share[ids]
+            row[ids - a] = np.arange(start, start + n, dtype=np.int32)
+        rank[a:b, 0] = row % ROW
+        rank[a:b, 1] = row // ROW
 
     _each(place, blocks)
     used = np.flatnonzero(counts)
