@@ -593,15 +593,40 @@ def fill_bins_latlong(size: int, up=None, rows=None, out=None):
         ux, uy, uz = np.asarray(up, np.float64) / np.linalg.norm(up)
         az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
         across = (np.sin(az) * ux + np.cos(az) * uz).astype(np.float32)
-        height = np.cos(el).astype(np.float32)[:, None] * across
+        # A camera without roll (ux = 0) has its columns in mirrored pairs: the arcsines of
+        # one half are the other's (taken only when the values agree exactly).
+        half = size // 2
+        mirrored = size % 2 == 0 and np.array_equal(across[:half], across[::-1][:half])
+        cols = across[:half] if mirrored else across
+        height = np.cos(el).astype(np.float32)[:, None] * cols
         height += np.float32(uy) * np.sin(el).astype(np.float32)[:, None]
-        elevation = np.degrees(np.arcsin(np.clip(height, -1.0, 1.0)))
-    e = np.clip(elevation.astype(np.float32).ravel() + np.float32(90.0), 0, FILL_BINS - 1)
-    e *= np.float32(FILL_STEPS)
-    out = np.empty(e.size, np.uint16) if out is None else out
-    np.rint(e, out=e)
-    out[:] = e
+        elevation = np.clip(height, -1.0, 1.0, out=height)
+        np.arcsin(elevation, out=elevation)
+        np.degrees(elevation, out=elevation)
+        steps = _steps(elevation)
+        if mirrored:
+            out = np.empty(len(rows) * size, np.uint16) if out is None else out
+            both = out.reshape(len(rows), size)
+            both[:, :half] = steps
+            both[:, half:] = steps[:, ::-1]
+            return out
+        out = np.empty(steps.size, np.uint16) if out is None else out
+        out[:] = steps.ravel()
+        return out
+    steps = _steps(elevation.astype(np.float32).ravel())
+    out = np.empty(steps.size, np.uint16) if out is None else out
+    out[:] = steps
     return out
+
+
+def _steps(elevation: np.ndarray) -> np.ndarray:
+    """float32 elevations in degrees (worked on in place) as `fill_bins_latlong`'s steps."""
+    e = elevation
+    e += np.float32(90.0)
+    np.clip(e, 0, FILL_BINS - 1, out=e)
+    e *= np.float32(FILL_STEPS)
+    np.rint(e, out=e)
+    return e
 
 
 def fill_bin_taps(steps, base: int, side=None):

@@ -227,9 +227,8 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
             reach = math.radians(max(params.extend_fade, 0.0))
             band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
         start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
-        # Outside them the fill alone: no position needed, no edge extension.
-        for outside in (slice(0, start * size), slice(stop * size, count)):
-            position[outside], angle[outside], inside[outside] = 0.0, np.float32(math.pi), False
+        # Outside them the fill alone: no position needed, no edge extension (what is
+        # outside is never read: the texels seen and near are looked for in these rows).
 
         def project(a, b):
             rows = slice(start + a, start + b)
@@ -250,14 +249,9 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     position = position.reshape(shape + (2,))
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
-    pixels = params.extend_blur * angle * intrinsics[0]
-    blur = np.minimum(
-        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
-    )
-    lod = np.clip(np.maximum(_lod(layout, size, position, band).ravel(), blur), 0.0, top)
-
+    rows = slice(start * size, stop * size) if latlong else slice(0, count)  # may be seen/near
     if latlong:
-        seen = np.flatnonzero(inside)
+        seen = rows.start + np.flatnonzero(inside[rows])
         centres = camera_view.directions_at(layout, size, seen, 0.0, 0.0)
     else:
         directions = directions.reshape(-1, 3)
@@ -266,24 +260,33 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         layout, size, centres, width, height, intrinsics, ids=seen
     )
     seen_level = camera_view.supersample_levels(rect, shapes)
-    unseen = np.ones(count, bool)
-    unseen[seen] = False
-    filled = params.extend_fade is not None
+    filled = params.extend_fade is not None  # (without: every row is in `rows`)
+    unseen = np.ones(rows.stop - rows.start, bool)
+    unseen[seen[(seen >= rows.start) & (seen < rows.stop)] - rows.start] = False
     # The edge extension's weight, for the texels it reaches only (the fade is 0 from
     # extend_fade degrees on): most of a large map is the fill alone.
     if filled and params.extend_fade > 0:
         reach = np.float32(math.radians(params.extend_fade))
-        near = np.flatnonzero(unseen & (angle < reach))
+        near = rows.start + np.flatnonzero(unseen & (angle[rows] < reach))
+    elif filled:
+        near = rows.start + np.flatnonzero(unseen & (angle[rows] <= 0))
     else:
-        near = np.flatnonzero(unseen & (angle <= 0)) if filled else np.flatnonzero(unseen)
+        near = rows.start + np.flatnonzero(unseen)
+    # Their mip levels: the plate's footprint, or the extension's blur where it is wider.
+    pixels = params.extend_blur * angle[near] * intrinsics[0]
+    blur = np.minimum(
+        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
+    )
+    lod_map = _lod(layout, size, position, band).ravel()
+    near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
     near_ext = (
         camera_view.fade_weight(angle[near], params.extend_fade)
         if filled
         else np.ones(near.size, np.float32)
     )
-    used = [int(lod[near].min()) if near.size else top, int(seen_level.min()) if seen.size else top]
+    used = [int(near_lod.min()) if near.size else top, int(seen_level.min()) if seen.size else top]
     deepest = [
-        int(lod[near].max()) + 1 if near.size else 0,
+        int(near_lod.max()) + 1 if near.size else 0,
         int(seen_level.max()) if seen.size else 0,
     ]
     level_fill = camera_view.fill_level(shapes) if filled else None
@@ -337,7 +340,7 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
 
     def trilinear(a, b):
         idx = np.empty((b - a, 8), np.int32)
-        _bilinear(px[a:b], py[a:b], lod[near[a:b]], shapes, offsets, idx, ext_weight[a:b])
+        _bilinear(px[a:b], py[a:b], near_lod[a:b], shapes, offsets, idx, ext_weight[a:b])
         ext_index[a:b] = idx
 
     for_blocks(trilinear, near.size, max_rows=CHUNK)
