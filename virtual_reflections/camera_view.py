@@ -91,10 +91,10 @@ def clamp_to_view(directions, width, height, intrinsics):
 ANGLE_EPS = math.acos(1.0 - 1e-6)  # angles below count as inside the plate's view
 
 
-def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
+def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None, cols=None):
     """`clamp_to_view` for the texel centres of a `size`-wide lat-long (the camera frame's),
-    rows `rows` (a slice; default all): ((n, 2) float32 positions, (n,) float32 angles), n
-    texels row by row.
+    rows `rows` and columns `cols` (slices; default all): ((n, 2) float32 positions, (n,)
+    float32 angles, (n,) bool seen), n texels row by row.
 
     A lat-long texel's azimuth is its column's and its elevation its row's, and the clamped
     elevation is the row's or one of the column's two limits: every trigonometric function
@@ -103,7 +103,8 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
     h = size // 2
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
-    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)  # (W,) + toward the plate's left
+    columns = range(size)[cols or slice(None)]
+    az = -2.0 * np.pi * ((np.arange(columns.start, columns.stop) + 0.5) / size - 0.5)  # + left
     a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
     cos_a = np.cos(a)
     lo = np.arctan((cy - height) / fy * cos_a)  # the frame's bottom and top at this azimuth
@@ -117,7 +118,7 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None):
         return np.where(below, f(lo), np.where(above, f(hi), f(el)[:, None])).astype(np.float32)
 
     py = cy - (fy / cos_a).astype(np.float32) * pick(np.tan)
-    position = np.empty((len(rows), size, 2), np.float32)
+    position = np.empty((len(rows), len(columns), 2), np.float32)
     position[..., 0] = px
     position[..., 1] = np.clip(py, 0.0, height)
     # The angle between the direction and its clamped twin, well conditioned for small ones:
@@ -150,6 +151,33 @@ def latlong_rows_near_view(size: int, width, height, intrinsics, reach: float) -
     if not rows.size:
         return 0, 0
     return max(int(rows[0]) - 1, 0), min(int(rows[-1]) + 2, h)
+
+
+def latlong_cols_near_view(size: int, width, height, intrinsics, reach: float, rows) -> tuple:
+    """(first, stop): the columns of a `size`-wide lat-long whose texel centres in rows
+    `rows` ((first, stop), `latlong_rows_near_view`) may be less than `reach` radians from
+    the plate's view (or in it), one column of margin each side (their levels read their
+    neighbours). With e a texel's clamped elevation and a its clamped azimuth,
+    sin^2(angle / 2) >= cos(el) cos(e) sin^2((az - a) / 2) (`clamp_to_view_latlong`), and
+    cos(e) is least at the frame's bottom or top at that azimuth: a column where even that
+    bound is beyond `reach` for the rows' widest elevation holds the fill alone."""
+    fx, fy, cx, cy = intrinsics
+    h = size // 2
+    if rows[1] <= rows[0]:
+        return 0, 0
+    el = -np.pi * ((np.arange(rows[0], rows[1]) + 0.5) / h - 0.5)
+    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
+    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
+    cos_a = np.cos(a)
+    cos_e = np.minimum(
+        np.cos(np.arctan((cy - height) / fy * cos_a)), np.cos(np.arctan(cy / fy * cos_a))
+    )
+    bound = float(np.cos(el).min()) * cos_e * np.sin(0.5 * (az - a)) ** 2
+    # A margin for the float32 angles the table compares with `reach`.
+    cols = np.flatnonzero(bound < np.sin(0.5 * reach) ** 2 * 1.001 + 1e-9)
+    if not cols.size:
+        return 0, 0
+    return max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, size)
 
 
 def plate_positions(

@@ -132,30 +132,38 @@ def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:
     return mask.reshape(shape)
 
 
-def _lod(layout: str, size: int, position: np.ndarray, band=None) -> np.ndarray:
+def _lod(layout: str, size: int, position: np.ndarray, band=None, cols=None) -> np.ndarray:
     """Mip level per texel: log2 of the plate pixels one texel covers, (H, W) float32.
     Computed in slabs of rows (each with its neighbour rows) over the cores; with `band`
-    (first, stop) only those rows (the others 0)."""
+    (first, stop) only those rows (the others 0); with `cols` (first, stop) of a lat-long
+    only those columns (the others undefined; the first and last of them read only one
+    neighbour, as if at the map's edge)."""
     height, width = position.shape[:2]
     first, stop = band or (0, height)
     lod = np.empty((height, width), np.float32)
     lod[:first] = 0.0
     lod[stop:] = 0.0
+    c0, c1 = cols or (0, width)
+    part = (c0, c1) != (0, width)
 
     def band_rows(a, b):
         a, b = first + a, first + b
         lo, hi = max(a - 1, 0), min(b + 1, height)
-        lod[a:b] = _slab_lod(layout, size, position[lo:hi], lo, a, b)
+        slab = position[lo:hi, c0:c1]
+        lod[a:b, c0:c1] = _slab_lod(layout, size, slab, lo, a, b, wrap=not part)
 
     for_blocks(band_rows, stop - first, min_rows=16, max_rows=max(1, CHUNK // width))
     return lod
 
 
-def _slab_lod(layout: str, size: int, slab: np.ndarray, lo: int, a: int, b: int) -> np.ndarray:
+def _slab_lod(
+    layout: str, size: int, slab: np.ndarray, lo: int, a: int, b: int, wrap: bool = True
+) -> np.ndarray:
     """`_lod` of the map's rows a .. b - 1 from `slab`, the positions of rows lo .. lo +
-    len(slab) - 1 (those rows and their neighbours that exist: lo = max(a - 1, 0))."""
+    len(slab) - 1 (those rows and their neighbours that exist: lo = max(a - 1, 0)). wrap:
+    a lat-long's rows wrap around (False: `slab` holds only some of its columns)."""
     latlong = layout == "latlong"
-    across = _spans(slab[a - lo : b - lo], 1, wrap=latlong, block=0)
+    across = _spans(slab[a - lo : b - lo], 1, wrap=latlong and wrap, block=0)
     down = _spans(slab, 0, wrap=False, block=0 if latlong else size, start=lo)
     squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
     return 0.5 * np.log2(squared, dtype=np.float32)
@@ -220,25 +228,34 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
     inside = np.empty(count, bool) if latlong else None
+    filled = params.extend_fade is not None
 
-    band = (0, shape[0])  # the rows whose texels may be anything but the fill alone
+    # The block of rows and columns whose texels may be anything but the fill alone: a
+    # lat-long's texels outside it are never projected, given a level or looked at.
+    band, cols = (0, shape[0]), (0, shape[1])
     if latlong:  # row by row, the trigonometry per row and column
-        if params.extend_fade is not None:
+        if filled:
             reach = math.radians(max(params.extend_fade, 0.0))
             band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
         start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
-        # Outside them the fill alone: no position needed, no edge extension (what is
-        # outside is never read: the texels seen and near are looked for in these rows).
+        if filled:
+            cols = camera_view.latlong_cols_near_view(
+                size, width, height, intrinsics, reach, (start, stop)
+            )
+        grid = (position.reshape(shape + (2,)), angle.reshape(shape), inside.reshape(shape))
+        columns = slice(*cols)
 
         def project(a, b):
             rows = slice(start + a, start + b)
-            texels = slice((start + a) * size, (start + b) * size)
-            position[texels], angle[texels], inside[texels] = camera_view.clamp_to_view_latlong(
-                size, width, height, intrinsics, rows
+            texels = camera_view.clamp_to_view_latlong(
+                size, width, height, intrinsics, rows, columns
             )
+            for array, values in zip(grid, texels, strict=True):
+                array[rows, columns] = values.reshape(array[rows, columns].shape)
 
         for_blocks(project, stop - start, min_rows=16, max_rows=max(1, CHUNK // size))
     else:
+        start, stop = 0, shape[0]
 
         def project(a, b):
             position[a:b], angle[a:b] = camera_view.clamp_to_view(
@@ -249,9 +266,15 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
     position = position.reshape(shape + (2,))
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
-    rows = slice(start * size, stop * size) if latlong else slice(0, count)  # may be seen/near
+    block = (slice(start, stop), slice(*cols))  # may be seen or near; flat ids from its own:
+    ncols = cols[1] - cols[0]
+
+    def ids(local):
+        rows, columns = np.divmod(local, ncols)
+        return (start + rows) * shape[1] + cols[0] + columns
+
     if latlong:
-        seen = rows.start + np.flatnonzero(inside[rows])
+        seen = ids(np.flatnonzero(inside.reshape(shape)[block]))
         centres = camera_view.directions_at(layout, size, seen, 0.0, 0.0)
     else:
         directions = directions.reshape(-1, 3)
@@ -260,24 +283,24 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         layout, size, centres, width, height, intrinsics, ids=seen
     )
     seen_level = camera_view.supersample_levels(rect, shapes)
-    filled = params.extend_fade is not None  # (without: every row is in `rows`)
-    unseen = np.ones(rows.stop - rows.start, bool)
-    unseen[seen[(seen >= rows.start) & (seen < rows.stop)] - rows.start] = False
+    unseen = np.ones(count, bool)
+    unseen[seen] = False
+    unseen, near_angle = unseen.reshape(shape)[block], angle.reshape(shape)[block]
     # The edge extension's weight, for the texels it reaches only (the fade is 0 from
     # extend_fade degrees on): most of a large map is the fill alone.
     if filled and params.extend_fade > 0:
         reach = np.float32(math.radians(params.extend_fade))
-        near = rows.start + np.flatnonzero(unseen & (angle[rows] < reach))
+        near = ids(np.flatnonzero(unseen & (near_angle < reach)))
     elif filled:
-        near = rows.start + np.flatnonzero(unseen & (angle[rows] <= 0))
+        near = ids(np.flatnonzero(unseen & (near_angle <= 0)))
     else:
-        near = rows.start + np.flatnonzero(unseen)
+        near = ids(np.flatnonzero(unseen))
     # Their mip levels: the plate's footprint, or the extension's blur where it is wider.
     pixels = params.extend_blur * angle[near] * intrinsics[0]
     blur = np.minimum(
         np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
     )
-    lod_map = _lod(layout, size, position, band).ravel()
+    lod_map = _lod(layout, size, position, band, cols).ravel()
     near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
     near_ext = (
         camera_view.fade_weight(angle[near], params.extend_fade)

@@ -268,7 +268,7 @@ def test_the_lat_long_clamp_per_row_and_column_is_the_general_one(shifted):
     np.testing.assert_array_equal(seen, np.flatnonzero(inside))
 
 
-@pytest.mark.parametrize("up", [None, (0.0, 0.97, 0.24)])
+@pytest.mark.parametrize("up", [None, (0.0, 0.97, 0.24), (0.1, 0.96, 0.26)])  # rolled: no mirror
 def test_the_compact_fill_reads_the_profile_as_its_taps_do(up):
     """The lat-long fill kept as one elevation step per texel (or per row) gives the values
     the fill's taps give, to the step's rounding."""
@@ -313,3 +313,43 @@ def test_the_rows_left_out_of_a_cold_table_are_beyond_the_edge_extension(intrins
     assert (angle[outside] >= reach - 1e-6).all()
     assert not inside[outside].any()
     assert inside[first:stop].any()
+
+
+@pytest.mark.parametrize(
+    "intrinsics, reach_deg",
+    [
+        ((277.0, 277.0, 160.0, 90.0), 20.0),  # 60 degrees across, centred
+        ((150.0, 170.0, 40.0, 150.0), 10.0),  # a wide, off-centre lens
+        ((900.0, 900.0, 160.0, 90.0), 0.0),  # a long lens, no extension
+        ((277.0, 277.0, 160.0, 90.0), 60.0),  # a wide reach: most columns kept
+    ],
+)
+def test_the_columns_left_out_of_a_cold_table_are_beyond_the_edge_extension(intrinsics, reach_deg):
+    """Within the kept rows, the table projects only `latlong_cols_near_view`'s columns:
+    every texel of the other columns must be farther than the extension's reach from the
+    plate's view, and the kept columns must hold every texel the plate sees (the whole map
+    projected, for comparison, and the columns' own projection the same values)."""
+    size, width, height = 256, 320, 180
+    reach = math.radians(reach_deg)
+    rows = cv.latlong_rows_near_view(size, width, height, intrinsics, reach)
+    first, stop = cv.latlong_cols_near_view(size, width, height, intrinsics, reach, rows)
+    position, angle, inside = cv.clamp_to_view_latlong(size, width, height, intrinsics)
+    angle, inside = angle.reshape(size // 2, size), inside.reshape(size // 2, size)
+    band = slice(*rows)
+    outside = np.ones(size, bool)
+    outside[first:stop] = False
+    assert 0 < stop - first <= size
+    assert (angle[band][:, outside] >= reach - 1e-6).all()
+    assert not inside[:, outside].any()
+    assert inside[:, first:stop].any()
+    if reach_deg == 60.0:
+        assert stop - first > size // 2
+    else:
+        assert stop - first < size // 2  # the point: most columns are the fill alone
+    part = cv.clamp_to_view_latlong(
+        size, width, height, intrinsics, slice(*rows), slice(first, stop)
+    )
+    whole = position.reshape(size // 2, size, 2)[band, first:stop].reshape(-1, 2)
+    assert np.array_equal(part[0], whole)
+    assert np.array_equal(part[1], angle[band, first:stop].ravel())
+    assert np.array_equal(part[2], inside[band, first:stop].ravel())
