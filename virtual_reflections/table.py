@@ -107,8 +107,7 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> 
     `start`: the index along `axis` of q's first texel (q a slab of the map).
     """
     n = q.shape[axis]
-    diff = np.diff(q, axis=axis, append=np.take(q, [0], axis=axis))  # last: wrap-around step
-    step = np.einsum("...i,...i->...", diff, diff)  # (H, W): squared step to the next texel
+    step = _steps(q, axis)  # (H, W): squared step to the next texel (the last: to the first)
     ahead = step
     behind = np.roll(step, 1, axis=axis)
     last = [slice(None)] * step.ndim
@@ -124,6 +123,22 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> 
     span = np.minimum(ahead, behind)
     span[~np.isfinite(span)] = 0.0
     return span
+
+
+def _steps(q: np.ndarray, axis: int) -> np.ndarray:
+    """(H, W) squared distance from each texel's position in q (H, W, 2) to the next one's
+    along `axis` (the last texel's: to the first's), in q's precision."""
+
+    def part(a, b):
+        index = [slice(None)] * q.ndim
+        index[axis] = slice(a, b)
+        return tuple(index)
+
+    d = np.empty_like(q)
+    np.subtract(q[part(1, None)], q[part(None, -1)], out=d[part(None, -1)])
+    np.subtract(q[part(None, 1)], q[part(-1, None)], out=d[part(-1, None)])
+    np.multiply(d, d, out=d)
+    return np.add(d[..., 0], d[..., 1])
 
 
 def _along(mask: np.ndarray, axis: int, ndim: int) -> np.ndarray:

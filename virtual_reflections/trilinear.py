@@ -89,9 +89,12 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     first = np.concatenate(([0], np.cumsum(padded)[:-1]))
     starts_per = first + np.cumsum(counts_per, axis=0) - counts_per  # (blocks, keys)
     scales = (2.0 ** -(np.arange(keys) // 2)).astype(np.float32)
-    x = np.ones(int(padded.sum()), np.float32)  # padding: pixel (0, 0) of the level, share 0
-    y = np.ones(x.size, np.float32)
+    x = np.empty(int(padded.sum()), np.float32)
+    y = np.empty(x.size, np.float32)
     upper = np.zeros(x.size, np.float16)
+    for k in np.flatnonzero(padded - counts):  # padding: pixel (0, 0) of the level, share 0
+        x[first[k] + counts[k] : first[k] + padded[k]] = 1.0
+        y[first[k] + counts[k] : first[k] + padded[k]] = 1.0
     rank = np.empty((total, 2), np.int16)
 
     def place(i):
