@@ -17,7 +17,7 @@ from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .opencv import backend
-from .parallel import for_blocks
+from .parallel import CHUNK, for_blocks
 from .params import Params
 from .supersample import gather as gather_supersample
 from .table import LookupTable, lookup_table
@@ -109,7 +109,8 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
         if steps.size == table.shape[0]:  # one step per row: one matrix product
             fill_values(steps, side, lookup, out)
         else:
-            for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, 8192 // width))
+            # (blocks of 8192 texels took twice as long on a 4096-wide map: the pool's cost)
+            for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, CHUNK // width))
     if table.trilinear is not None:  # every texel, the groups written over it
         shapes = level_shapes(seg.height, seg.width, table.levels)
         offsets = level_offsets(shapes, first)
