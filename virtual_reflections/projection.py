@@ -127,10 +127,14 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
         out[idx, 0] = np.where(horiz, fixed, along)
         out[idx, 1] = np.where(horiz, along, fixed)
 
-    # The zero vector (no face): the centre of X.
-    out[(ax == 0) & (ay == 0) & (az == 0)] = (cx, cy)
-    for axis, size in ((0, W), (1, H)):  # (np.clip with per-column bounds is slow)
+    # The zero vector (no face): the centre of X (|x| + |y| + |z| is 0 for it alone).
+    zero = np.flatnonzero((ax + ay) + az == 0)
+    if zero.size:
+        out[zero] = (cx, cy)
+    # Within the plate: the lower bound over the whole array at once (contiguous), the upper
+    # per column (np.clip with per-column bounds is slow).
+    np.maximum(out, 0.0, out=out)
+    for axis, size in ((0, W), (1, H)):
         column = out[:, axis]
-        np.maximum(column, 0.0, out=column)
         np.minimum(column, size, out=column)
     return out.reshape(shape + (2,))

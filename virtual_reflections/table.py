@@ -493,7 +493,7 @@ def _paper_latlong(seg: Segmentation, size: int, triangles: int, top: int):
         slab = plate_positions(latlong_directions(fx, fy, width, np.float32), seg, triangles)
         position[a:b] = slab[a - lo : b - lo]
         level = _slab_lod("latlong", size, slab, lo, a, b)
-        np.clip(level, 0.0, top, out=lod[a:b])
+        np.minimum(np.maximum(level, 0.0, out=level), top, out=lod[a:b])
 
     for_blocks(rows, height, min_rows=16, max_rows=max(1, 4 * CHUNK // width))
     return position, lod.ravel()

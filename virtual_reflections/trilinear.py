@@ -77,7 +77,9 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     def classify(i):
         a, b = i * step, min((i + 1) * step, total)
         lo = np.minimum(lod[a:b].astype(np.int32), max(top - 1, 0))
-        share[a:b] = np.clip(lod[a:b] - lo.astype(np.float32), 0.0, 1.0)
+        frac = lod[a:b] - lo.astype(np.float32)
+        np.maximum(frac, 0.0, out=frac)  # (np.clip's own loop is ~5x slower)
+        share[a:b] = np.minimum(frac, 1.0, out=frac)
         key[a:b] = 2 * lo + (share[a:b] == 0)
         counts_per[i] = np.bincount(key[a:b], minlength=keys)
 
