@@ -107,7 +107,7 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> 
     `start`: the index along `axis` of q's first texel (q a slab of the map).
     """
     n = q.shape[axis]
-    step = _steps(q, axis)  # (H, W): squared step to the next texel (the last: to the first)
+    step = _squared_steps(q, axis)  # (H, W): to the next texel (the last: to the first)
     ahead = step
     behind = np.roll(step, 1, axis=axis)
     last = [slice(None)] * step.ndim
@@ -125,7 +125,7 @@ def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> 
     return span
 
 
-def _steps(q: np.ndarray, axis: int) -> np.ndarray:
+def _squared_steps(q: np.ndarray, axis: int) -> np.ndarray:
     """(H, W) squared distance from each texel's position in q (H, W, 2) to the next one's
     along `axis` (the last texel's: to the first's), in q's precision."""
 
