@@ -91,6 +91,14 @@ def clamp_to_view(directions, width, height, intrinsics):
 ANGLE_EPS = math.acos(1.0 - 1e-6)  # angles below count as inside the plate's view
 
 
+def _latlong_columns(size: int, width, fx: float, cx: float, columns: range):
+    """Per column of a `size`-wide lat-long (`columns`): (azimuth, + toward the plate's left;
+    the azimuth clamped onto the plate's view, a; cos(a))."""
+    az = -2.0 * np.pi * ((np.arange(columns.start, columns.stop) + 0.5) / size - 0.5)
+    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
+    return az, a, np.cos(a)
+
+
 def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None, cols=None):
     """`clamp_to_view` for the texel centres of a `size`-wide lat-long (the camera frame's),
     rows `rows` and columns `cols` (slices; default all): ((n, 2) float32 positions, (n,)
@@ -104,9 +112,7 @@ def clamp_to_view_latlong(size: int, width, height, intrinsics, rows=None, cols=
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
     columns = range(size)[cols or slice(None)]
-    az = -2.0 * np.pi * ((np.arange(columns.start, columns.stop) + 0.5) / size - 0.5)  # + left
-    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
-    cos_a = np.cos(a)
+    az, a, cos_a = _latlong_columns(size, width, fx, cx, columns)
     lo = np.arctan((cy - height) / fy * cos_a)  # the frame's bottom and top at this azimuth
     hi = np.arctan(cy / fy * cos_a)
     px = np.clip(cx - fx * np.tan(a), 0.0, width).astype(np.float32)
@@ -142,8 +148,7 @@ def latlong_rows_near_view(size: int, width, height, intrinsics, reach: float) -
     top (`clamp_to_view_latlong`), so the other rows are farther than `reach` everywhere."""
     fx, fy, cx, cy = intrinsics
     h = size // 2
-    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
-    cos_a = np.cos(np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx)))
+    _, _, cos_a = _latlong_columns(size, width, fx, cx, range(size))
     low = float(np.arctan((cy - height) / fy * cos_a).min())
     high = float(np.arctan(cy / fy * cos_a).max())
     el = -np.pi * ((np.arange(h) + 0.5) / h - 0.5)
@@ -166,9 +171,7 @@ def latlong_cols_near_view(size: int, width, height, intrinsics, reach: float, r
     if rows[1] <= rows[0]:
         return 0, 0
     el = -np.pi * ((np.arange(rows[0], rows[1]) + 0.5) / h - 0.5)
-    az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
-    a = np.clip(az, math.atan((cx - width) / fx), math.atan(cx / fx))
-    cos_a = np.cos(a)
+    az, a, cos_a = _latlong_columns(size, width, fx, cx, range(size))
     cos_e = np.minimum(
         np.cos(np.arctan((cy - height) / fy * cos_a)), np.cos(np.arctan(cy / fy * cos_a))
     )
