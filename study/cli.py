@@ -75,14 +75,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--cases",
-        choices=("default", "failures", "inter", "motion"),
+        choices=("default", "failures", "inter", "motion", "heldout"),
         default="default",
         help="failures: the failure cases instead (floating, looking up, wall, border, large, "
         "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md; "
         "inter: two or three mirrors side by side, one pass against the passes: "
         "DIR/scenes3d_inter.json and the 'Inter-reflections' table; "
         "motion: a sliding sphere and a moving camera, the change per frame pair: "
-        "DIR/scenes3d_motion.json and the 'In motion' table",
+        "DIR/scenes3d_motion.json and the 'In motion' table; "
+        "heldout (with --mirror-only): 8 scenes under the two HDRIs nothing was tuned on",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     p.add_argument(

@@ -40,7 +40,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures", "inter", "motion")
+CASES = ("default", "failures", "inter", "motion", "heldout")
 
 
 @dataclass(frozen=True)
@@ -56,6 +56,8 @@ class Config:
             return scenes.failure_set(self.quick)
         if self.cases == "inter":
             return scenes.inter_set(self.quick)
+        if self.cases == "heldout":
+            return scenes.held_out_set(self.quick)
         return scenes.scene_set(self.quick)
 
     @property
@@ -82,6 +84,8 @@ CONFIGS = {  # (cases, quick) -> Config
     ("failures", True): QUICK_FAILURES,
     ("inter", False): INTER,
     ("inter", True): QUICK_INTER,
+    ("heldout", False): Config(cases="heldout"),
+    ("heldout", True): Config(quick=True, width=256, samples=16, cases="heldout"),
 }
 
 
@@ -125,6 +129,7 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
     return {
         "command": COMMAND
         + (" --quick" if config.quick else "")
+        + ("" if config.cases == "default" else f" --cases {config.cases}")
         + " --mirror-only"
         + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}"),
         "sky_gain": sky_gain,
@@ -247,9 +252,11 @@ def run_command(
         except motion_report.MotionInputError as exc:
             raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
+    if cases == "heldout" and not mirror_only:
+        raise ScenesInputError("--cases heldout goes with --mirror-only")
     if mirror_only:
-        if cases != "default":
-            raise ScenesInputError("--mirror-only runs the default scenes only (no --cases)")
+        if cases not in ("default", "heldout"):
+            raise ScenesInputError("--mirror-only runs the default or the held-out scenes only")
         data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain)
         from . import mirror  # bpy is importable: run_mirror said so
 

@@ -136,10 +136,12 @@ def centre_height(shape: str, size: float) -> float:
     return {"sphere": 0.5, "torus": 0.5, "suzanne": 0.4, "car": 0.17}[shape] * size
 
 
-def make_scene(seed: int, index: int) -> Scene3D:
+def make_scene(seed: int, index: int, hdri: str | None = None, shape: str | None = None) -> Scene3D:
+    """Scene `index` of a set, drawn from `seed`: its HDRI and subject cycle through HDRIS and
+    SHAPES by `index` unless given."""
     rng = np.random.default_rng(seed)
-    hdri = HDRIS[index % len(HDRIS)]
-    shape = SHAPES[index % len(SHAPES)]
+    hdri = hdri or HDRIS[index % len(HDRIS)]
+    shape = shape or SHAPES[index % len(SHAPES)]
     for _ in range(10000):
         cam_h = rng.uniform(1.4, 1.8)
         lens = float(np.exp(rng.uniform(math.log(24), math.log(85))))
@@ -215,6 +217,24 @@ def make_scene(seed: int, index: int) -> Scene3D:
 def scene_set(quick: bool = False) -> list:
     seeds = QUICK_SEEDS if quick else SEEDS
     return [make_scene(seed, SEEDS.index(seed)) for seed in seeds]
+
+
+HELD_OUT_SEEDS = tuple(range(201, 209))  # eight scenes under the two held-out HDRIs
+
+
+def held_out_set(quick: bool = False) -> list:
+    """Scenes drawn as `scene_set`'s but under the HDRIs nothing was tuned on (HELD_OUT):
+    every shape under each of them, from the seeds 201-208 (quick: the first two)."""
+    seeds = HELD_OUT_SEEDS[:2] if quick else HELD_OUT_SEEDS
+    return [
+        make_scene(
+            seed,
+            i,
+            hdri=HELD_OUT[i % len(HELD_OUT)],
+            shape=SHAPES[(i // len(HELD_OUT)) % len(SHAPES)],
+        )
+        for i, seed in enumerate(seeds)
+    ]
 
 
 # --- failure cases (issue 11, item 5) -----------------------------------------------------------

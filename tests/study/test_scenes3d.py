@@ -47,6 +47,19 @@ def test_scene_descriptions_are_deterministic_and_in_range():
     assert 2 <= len(QUICK.specs()) <= 3
 
 
+def test_the_held_out_scenes_use_only_the_held_out_hdris_with_every_shape():
+    held = scenes.held_out_set()
+    assert [s.to_json() for s in held] == [s.to_json() for s in scenes.held_out_set()]
+    assert {s.hdri for s in held} == set(scenes.HELD_OUT)
+    assert not {s.name for s in held} & {s.name for s in scenes.scene_set()}
+    for hdri in scenes.HELD_OUT:  # every shape under each held-out HDRI
+        assert {s.shape for s in held if s.hdri == hdri} == set(scenes.SHAPES)
+    for s in held:  # drawn from the same ranges as the training scenes
+        assert 1.4 <= s.camera_height <= 1.8 and 2 <= s.pitch_deg <= 15
+        assert 24 <= s.lens_mm <= 85 and 3 <= s.distance <= 10 and 0.3 <= s.size <= 1.5
+    assert [s.name for s in scenes.held_out_set(quick=True)] == [s.name for s in held[:2]]
+
+
 def test_the_command_rejects_more_jobs_in_one_line():
     r = subprocess.run(
         [sys.executable, "-m", "study", "scenes", "--quick", "--jobs", "2"],
