@@ -118,8 +118,9 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
         gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
     if table.index is not None:
         _gather(source, table.texels, table.index, table.weight, out)
-    if table.supersample is not None:
-        gather_supersample(table.supersample, source, out)
+    if table.supersample is not None:  # level 0 read from the plate itself
+        rows = np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
+        gather_supersample(table.supersample, source, out, plate=rows)
     for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))

@@ -232,8 +232,11 @@ def _frozen(*arrays):
             a.flags.writeable = False
 
 
-def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
-    """The camera-view method's table (see the module docstring and camera_view.py)."""
+def _build_camera_view(
+    seg: Segmentation, layout: str, size: int, params: Params, level0: bool = False
+) -> LookupTable:
+    """The camera-view method's table (see the module docstring and camera_view.py).
+    `level0`: the pyramid keeps level 0 even when none of these texels read it there."""
     shape = map_shape(layout, size)
     width, height = seg.width, seg.height
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
@@ -322,7 +325,13 @@ def _build_camera_view(seg: Segmentation, layout: str, size: int, params: Params
         if filled
         else np.ones(near.size, np.float32)
     )
-    used = [int(near_lod.min()) if near.size else top, int(seen_level.min()) if seen.size else top]
+    # Seen texels on level 0 read the plate itself (supersample.py), not the pyramid: unless
+    # `level0` (the ground method's taps may read it), the pyramid need not hold level 0.
+    pyramid_seen = seen_level if level0 else seen_level[seen_level > 0]
+    used = [
+        int(near_lod.min()) if near.size else top,
+        int(pyramid_seen.min()) if pyramid_seen.size else top,
+    ]
     deepest = [
         int(near_lod.max()) + 1 if near.size else 0,
         int(seen_level.max()) if seen.size else 0,
@@ -506,7 +515,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     the plate's borders)."""
     width, height = seg.width, seg.height
     distant = dataclasses.replace(params, method="camera", ground=None)
-    base = _camera_table(width, height, distant, layout, size)
+    base = _camera_table(width, height, distant, layout, size, True)  # level 0 for the ground
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
     shapes = level_shapes(height, width)
     offsets = level_offsets(shapes, base.first_level)
@@ -593,13 +602,16 @@ def lookup_table(
     seg = segment(width, height, bbox, params)
     if params.method == "camera":
         return dataclasses.replace(
-            _camera_table(width, height, params, layout, size), segmentation=seg
+            _camera_table(width, height, params, layout, size, False), segmentation=seg
         )
     return build_table(seg, layout, size, params)
 
 
 @bounded
-def _camera_table(width: int, height: int, params: Params, layout: str, size: int) -> LookupTable:
-    """The camera-view method's table: it reads only the plate's size from the segmentation."""
+def _camera_table(
+    width: int, height: int, params: Params, layout: str, size: int, level0: bool
+) -> LookupTable:
+    """The camera-view method's table: it reads only the plate's size from the segmentation.
+    `level0`: its pyramid keeps level 0 (the ground method's base, whose taps may read it)."""
     centre = (width / 2 - 1, height / 2 - 1, width / 2 + 1, height / 2 + 1)
-    return build_table(segment(width, height, centre, params), layout, size, params)
+    return _build_camera_view(segment(width, height, centre, params), layout, size, params, level0)

@@ -124,19 +124,30 @@ def test_compact_supersamples_read_what_their_taps_read():
     flat = build_pyramid(_plate())
     count, k = 700, 16
     level = rng.integers(0, 4, count)
-    positions = [((rng.random(count) * (W + 6)), (rng.random(count) * (H + 6))) for _ in range(k)]
+    positions = [
+        (rng.random(count) * (W + 12) - 6, rng.random(count) * (H + 12) - 6) for _ in range(k)
+    ]
     texels = rng.permutation(5000)[:count]
     index, weight = mean_taps(positions, level, shapes, offsets)
     expected = np.einsum("tkc,tk->tc", flat[index].astype(np.float64), weight)
     samples = supersamples(texels, positions, level, shapes, offsets)
+    assert samples.on_plate[0] and not any(samples.on_plate[1:])  # level 0: the plate's rows
+    plate = _plate().reshape(-1, 3)
     out = np.zeros((5000, 3), np.float32)
-    gather_supersample(samples, flat, out)
+    # Level 0 from the plate itself: a pyramid without level 0 serves the other runs.
+    part = build_pyramid(_plate(), first=1)
+    part_samples = supersamples(texels, positions, level, shapes, level_offsets(shapes, 1))
+    gather_supersample(part_samples, part, out, plate=plate)
+    assert np.abs(out[texels] - expected).max() < 2e-5
+    with pytest.raises(ValueError, match="plate"):
+        gather_supersample(samples, flat, out)
+    gather_supersample(samples, flat, out, plate=plate)
     assert np.abs(out[texels] - expected).max() < 2e-5
     assert (samples.base.nbytes + samples.fx.nbytes + samples.fy.nbytes) / (count * k) == 8
     drop = np.zeros(5000, bool)
     drop[texels[:100]] = True
     out2 = np.zeros((5000, 3), np.float32)
-    gather_supersample(samples.without(drop), flat, out2)
+    gather_supersample(samples.without(drop), flat, out2, plate=plate)
     assert not out2[texels[:100]].any() and np.array_equal(out2[texels[100:]], out[texels[100:]])
 
 
