@@ -83,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
         "DIR/scenes3d_inter.json and the 'Inter-reflections' table; "
         "motion: a sliding sphere and a moving camera, the change per frame pair: "
         "DIR/scenes3d_motion.json and the 'In motion' table; "
-        "heldout (with --mirror-only): 8 scenes under the two HDRIs nothing was tuned on",
+        "heldout: 8 scenes under the two HDRIs nothing was tuned on: "
+        "DIR/scenes3d_heldout.json and the 'Held-out HDRIs' table",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     p.add_argument(

@@ -190,7 +190,7 @@ def run_study(config: Config, log=None, keep=None):
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
         "samples": config.samples,
         "denoised": run.build.build_scenes().has_oidn(),
-        "hdris": list(scenes.HDRIS),
+        "hdris": list(scenes.HELD_OUT if config.cases == "heldout" else scenes.HDRIS),
         "held_out_hdris": list(scenes.HELD_OUT),
         "materials": [{"name": n, "roughness": r, "combine": c} for n, r, c in run.MATERIALS],
         "addon_methods": methods,
@@ -200,6 +200,8 @@ def run_study(config: Config, log=None, keep=None):
         "machine": _machine(),
         "seconds": time.perf_counter() - started,
     }
+    if config.cases == "heldout":
+        data["cases"] = "heldout"
     if config.cases == "inter":
         data["cases"] = "inter"
         data["materials"] = [{"name": "mirror", "roughness": 0.0, "combine": "REPLACE"}]
@@ -252,8 +254,6 @@ def run_command(
         except motion_report.MotionInputError as exc:
             raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
-    if cases == "heldout" and not mirror_only:
-        raise ScenesInputError("--cases heldout goes with --mirror-only")
     if mirror_only:
         if cases not in ("default", "heldout"):
             raise ScenesInputError("--mirror-only runs the default or the held-out scenes only")
@@ -301,6 +301,9 @@ def write_outputs(data, crops, target, name=None) -> None:
     if data.get("cases") == "inter":
         write_inter(data, crops, target, name)
         return
+    if data.get("cases") == "heldout":
+        write_heldout(data, target, name)
+        return
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
     if importlib.util.find_spec("matplotlib") is None:
         print("matplotlib is not installed: no charts", file=sys.stderr)
@@ -339,6 +342,18 @@ def write_failures(data, crops, target, name) -> None:
         f"wrote {target / (name + '.json')}, {md} and the charts in {target / 'images'}",
         file=sys.stderr,
     )
+
+
+def write_heldout(data, target, name) -> None:
+    """OUT/NAME.json and the "heldout" block of OUT/scenes3d(_quick).md (the means and the
+    mirror per scene; appended under its heading when the file lacks it)."""
+    from . import report
+
+    (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
+    md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
+    table = report.table_means(data) + "\n\n" + report.table_scenes(data)
+    report.add_block(md, "heldout", "Held-out HDRIs", table, data["command"])
+    print(f"wrote {target / (name + '.json')} and {md}", file=sys.stderr)
 
 
 def write_inter(data, crops, target, name) -> None:

@@ -68,11 +68,7 @@ def test_a_black_sky_prior_changes_only_the_method(runs):
 
 
 def test_cache_and_sky_gain_need_mirror_only_in_one_line():
-    for extra in (
-        ["--cache", "/tmp/x"],
-        ["--mirror-only", "--sky-gain", "-1"],
-        ["--cases", "heldout"],  # the held-out scenes: the mirror loop only
-    ):
+    for extra in (["--cache", "/tmp/x"], ["--mirror-only", "--sky-gain", "-1"]):
         r = subprocess.run(
             [sys.executable, "-m", "study", "scenes", "--quick", *extra],
             cwd=ROOT,
