@@ -32,7 +32,7 @@ from .opencv import backend, cv2
 from .parallel import for_blocks
 from .taps import weighted_sum
 
-ROW = 2048  # texels per row of a run: OpenCV remaps runs as (n / ROW, ROW) images
+ROW = 2048  # texels per row of a run (a power of 2): OpenCV remaps runs as (n / ROW, ROW) images
 MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
 BLOCK = 32768  # texels per block of NumPy work (8192 was 15-25 % slower: more Python per tap)
 
@@ -67,7 +67,7 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     # Runs by level, and within a level first the texels that read the next level, then those
     # that do not (share 0: magnified, lod clipped to 0): their runs are one bilinear sample.
     # Worked in blocks of the map over the cores: each block's keys and counts, then each
-    # texel's row in the runs (a stable order by key: map order within a run, reads local).
+    # texel's row in the runs (in map order within a run: reads stay local).
     key = np.empty(total, np.uint8)
     share = np.empty(total, np.float16)
     step = 8 * BLOCK
@@ -79,8 +79,13 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
         lo = np.minimum(lod[a:b].astype(np.int32), max(top - 1, 0))
         frac = lod[a:b] - lo.astype(np.float32)
         np.maximum(frac, 0.0, out=frac)  # (np.clip's own loop is ~5x slower)
-        share[a:b] = np.minimum(frac, 1.0, out=frac)
-        key[a:b] = 2 * lo + (share[a:b] == 0)
+        np.minimum(frac, 1.0, out=frac)
+        share[a:b] = frac
+        # A share that float16 rounds to 0 (at most 2^-25) is 0: compared in float32, whose
+        # loops are compiled (float16's are emulated, several times slower).
+        lo *= 2
+        lo += frac <= np.float32(2.0**-25)
+        key[a:b] = lo
         counts_per[i] = np.bincount(key[a:b], minlength=keys)
 
     _each(classify, blocks)
@@ -102,24 +107,27 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     def place(i):
         a, b = i * step, min((i + 1) * step, total)
         k = key[a:b]
-        order = np.argsort(k, kind="stable")
-        # Each key's texels are consecutive in `order` and in the runs (the block's start
-        # for the key + the place among the block's texels of it): written as slices.
-        ends = np.cumsum(counts_per[i])
+        present = np.flatnonzero(counts_per[i])
         row = np.empty(b - a, np.int32)  # each texel's row of the runs, in map order
-        for kk in np.flatnonzero(counts_per[i]):
+        # A block holds a few keys (levels change slowly over a map): each key's texels,
+        # in map order, are consecutive in the runs from the block's start for the key.
+        for kk in present:
             n = int(counts_per[i][kk])
-            ids = a + order[ends[kk] - n : ends[kk]]
             start = int(starts_per[i][kk])
             out = slice(start, start + n)
+            if len(present) == 1:  # the whole block: slices, not indices
+                ids, local = slice(a, b), slice(None)
+            else:
+                local = np.flatnonzero(k == kk)
+                ids = local + a
             np.multiply(px[ids], scales[kk], out=x[out])
             x[out] += np.float32(0.5)  # +1 border, -0.5 to centres
             np.multiply(py[ids], scales[kk], out=y[out])
             y[out] += np.float32(0.5)
             upper[out] = share[ids]
-            row[ids - a] = np.arange(start, start + n, dtype=np.int32)
-        rank[a:b, 0] = row % ROW
-        rank[a:b, 1] = row // ROW
+            row[local] = np.arange(start, start + n, dtype=np.int32)
+        np.bitwise_and(row, ROW - 1, out=rank[a:b, 0], casting="unsafe")  # row % ROW
+        np.right_shift(row, ROW.bit_length() - 1, out=rank[a:b, 1], casting="unsafe")
 
     _each(place, blocks)
     used = np.flatnonzero(counts)
