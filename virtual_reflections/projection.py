@@ -47,6 +47,12 @@ def _lerp(a, b, t):
     return a + t * (b - a)
 
 
+def _where(mask):
+    """The indices where `mask` holds, or a slice when it holds everywhere (a lat-long's slab
+    of rows near a pole is one face: its arrays are then views, not gathered copies)."""
+    return slice(None) if mask.all() else np.flatnonzero(mask)
+
+
 def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 0) -> np.ndarray:
     """Plate positions seen along camera-frame `directions`.
 
@@ -77,13 +83,13 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
 
     with np.errstate(divide="ignore", invalid="ignore"):
         # Back face (+Z): region X.
-        idx = np.flatnonzero(back)
+        idx = _where(back)
         r = 1 / z[idx]
         out[idx, 0] = _split(x[idx] * r, X.x0, cx, X.x1)
         out[idx, 1] = _split(y[idx] * r, X.y0, cy, X.y1)
 
         # Left / right faces (+X / -X): regions L and R. t: 0 at the back edge, 1 at the front.
-        idx = np.flatnonzero(on_x & (ax > 0))
+        idx = _where(on_x & (ax > 0))
         r = 1 / ax[idx]
         left = x[idx] > 0
         w, t = y[idx] * r, 0.5 - 0.5 * z[idx] * r
@@ -91,7 +97,7 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
         out[idx, 1] = _lerp(_split(w, X.y0, cy, X.y1), _split(w, inner.y0, cy, inner.y1), t)
 
         # Top / bottom faces (+Y / -Y): regions T and B.
-        idx = np.flatnonzero(on_y)
+        idx = _where(on_y)
         r = 1 / ay[idx]
         top = y[idx] > 0
         h, t = x[idx] * r, 0.5 - 0.5 * z[idx] * r
@@ -99,7 +105,7 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
         out[idx, 0] = _lerp(_split(h, X.x0, cx, X.x1), _split(h, inner.x0, cx, inner.x1), t)
 
         # Front face (-Z): the ring F, four triangles with inverted orientation.
-        idx = np.flatnonzero(on_z & ~back)
+        idx = _where(on_z & ~back)
         r = 1 / az[idx]
         h, w = x[idx] * r, y[idx] * r
         horiz = np.abs(h) >= np.abs(w)  # in F'_L or F'_R, else F'_T or F'_B
