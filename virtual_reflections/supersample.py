@@ -132,9 +132,11 @@ def _plate_cell(v, size):
     """Unbordered coordinates v (pixel centres at integers 0 .. size - 1) on the plate: the
     left pixel, at most size - 2 so that its right neighbour is a pixel, and the step toward
     it (up to 1); beyond the first or the last centre, that pixel (what the border reads)."""
-    v = np.clip(v, 0.0, size - 1.0)
+    v = np.minimum(np.maximum(v, 0.0), size - 1.0)  # (np.clip's own loop is ~5x slower)
     i0 = np.minimum(np.floor(v), max(size - 2, 0))
-    return i0.astype(np.int64), np.rint(np.minimum(v - i0, 1.0) * STEPS).astype(np.uint16)
+    v -= i0  # the step, at most 1
+    v *= STEPS
+    return i0.astype(np.int64), np.rint(v, out=v).astype(np.uint16)
 
 
 def gather(samples: Supersample, source, out, plate=None) -> None:
