@@ -660,29 +660,6 @@ def _steps(elevation: np.ndarray) -> np.ndarray:
     return e
 
 
-def fill_bin_taps(steps, base: int, side=None):
-    """`fill_taps` (index (n, 2 or 4) int32, weight float32) from the compact form
-    (`fill_bins_latlong`; side: (n,) the left half's weight or None)."""
-    index = np.empty((steps.size, 2 if side is None else 4), np.int32)
-    weight = np.empty(index.shape, np.float32)
-    bins = np.minimum(steps // FILL_STEPS, FILL_BINS - 2).astype(np.int32)
-    upper = (steps - bins * FILL_STEPS).astype(np.float32) * np.float32(1.0 / FILL_STEPS)
-    first = base + bins
-    index[:, 0], index[:, 1] = first, first + 1
-    lower = 1 - upper
-    if side is None:
-        weight[:, 0], weight[:, 1] = lower, upper
-        return index, weight
-    index[:, 2], index[:, 3] = first + FILL_BINS, first + (FILL_BINS + 1)
-    side = np.asarray(side, np.float32)
-    other = 1 - side
-    np.multiply(lower, side, out=weight[:, 0])
-    np.multiply(upper, side, out=weight[:, 1])
-    np.multiply(lower, other, out=weight[:, 2])
-    np.multiply(upper, other, out=weight[:, 3])
-    return index, weight
-
-
 def fill_lookup(profile) -> np.ndarray:
     """The fill profile (sides, FILL_BINS, 3) float32 interpolated at every step of
     `fill_bins_latlong`: (sides, (FILL_BINS - 1) * FILL_STEPS + 1, 3) float32, per frame."""

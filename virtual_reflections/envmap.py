@@ -15,13 +15,14 @@ import numpy as np
 
 from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
+from .extension import apply as apply_extension
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .opencv import backend
 from .parallel import CHUNK, for_blocks
 from .params import Params
 from .supersample import gather as gather_supersample
 from .table import LookupTable, lookup_table
-from .taps import weighted_sum
+from .taps import put_rows, weighted_sum
 from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
@@ -118,6 +119,9 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
         gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
     if table.index is not None:
         _gather(source, table.texels, table.index, table.weight, out)
+    if table.extension is not None:  # over the fill written above
+        shapes = level_shapes(seg.height, seg.width, table.levels)
+        apply_extension(table.extension, pyramid, shapes, level_offsets(shapes, first), out)
     if table.supersample is not None:  # level 0 read from the plate itself
         rows = np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
         gather_supersample(table.supersample, source, out, plate=rows)
@@ -137,7 +141,7 @@ def _gather(source, texels, index, weight, out) -> None:
         else:
             sums = np.empty((b - a, 3), np.float32)
             weighted_sum(taps, weight[a:b], sums)
-            out[texels[a:b]] = sums
+            put_rows(out, texels[a:b], sums)
 
     for_blocks(gather, index.shape[0])
 

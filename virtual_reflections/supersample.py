@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .parallel import for_blocks
-from .taps import weighted_sum
+from .taps import put_rows, weighted_sum
 
 BLOCK = 1024  # texels per block of NumPy work (K samples, 4 K taps each)
 STEPS = 65535  # a sample's position between two pixels, in uint16 steps
@@ -176,6 +176,6 @@ def gather(samples: Supersample, source, out, plate=None) -> None:
             taps = np.take(rows, index.reshape(n, -1), axis=0, mode="clip")
             sums = np.empty((n, 3), np.float32)
             weighted_sum(taps, weight, sums)
-            out[samples.texels[c:d]] = sums
+            put_rows(out, samples.texels[c:d], sums)
 
         for_blocks(block, samples.starts[r + 1] - a, min_rows=BLOCK, max_rows=BLOCK)

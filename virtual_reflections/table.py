@@ -14,13 +14,13 @@ face's centre in the continuous limit) each texel averages the area it covers.
 
 The camera-view method (camera_view.py) has three groups of texels, each with its own
 number of taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps),
-those near the plate's view (8 trilinear taps of the blurred edge extension, faded into the
-fill's taps) and the rest (the fill only: the profile interpolated by elevation, and with
-`fill_sides` the left and the right profile weighted by `camera_view.side_weight`). The fill
-profiles are computed per frame and stored after the pyramid, so they are one more block of
-rows the same gathers read. On a lat-long the fill is not stored as taps: every texel keeps
-its elevation as one uint16 step (one per row without a world horizon) and the fill is
-written everywhere first (`camera_view.fill_values`), the other groups over it.
+those near the plate's view (one trilinear sample of the blurred edge extension, faded into
+the fill: extension.py) and the rest (the fill only: the profile interpolated by elevation,
+and with `fill_sides` the left and the right profile weighted by `camera_view.side_weight`).
+The fill profiles are computed per frame and stored after the pyramid, so they are one more
+block of rows the same gathers read. The fill is written over every texel first (on a
+lat-long not as taps: every texel keeps its elevation as one uint16 step, one per row without
+a world horizon, read by `camera_view.fill_values`), the other groups over it.
 
 Building works in blocks of texels (or rows) over the cores, so its temporaries stay small
 whatever the map's size; on a lat-long the camera-view geometry is taken per row and per
@@ -37,6 +37,7 @@ import numpy as np
 
 from . import camera_view, ground
 from .cache import bounded
+from .extension import Extension, extension
 from .layouts import latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import CHUNK, for_blocks
@@ -79,6 +80,9 @@ class LookupTable:
     # The camera view's seen texels: the mean of n x n bilinear samples each, stored compactly
     # (supersample.py), written after index/weight's texels, before the groups.
     supersample: Supersample | None = None
+    # The camera view's texels near the plate's view: the edge extension faded into the fill
+    # (extension.py), written after index/weight's texels (the fill's), before the groups.
+    extension: Extension | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,48 +186,6 @@ def _slab_lod(
     down = _spans(slab, 0, wrap=False, block=0 if latlong else size, start=lo)
     squared = np.maximum(np.maximum(across, down[a - lo : b - lo]), 1e-12)
     return 0.5 * np.log2(squared, dtype=np.float32)
-
-
-def _bilinear(px, py, lod, shapes, offsets, index, weight):
-    """Trilinear taps: bilinear at level-0 positions (px, py) on mip levels floor(lod) and
-    the next one, blended by the fraction of lod.
-
-    Writes index (T, 8) int32 and weight (T, 8) float32 (rows summing to 1). The pyramid's
-    border (mipmap.py) makes clamping unnecessary: positions lie in [0, W] x [0, H].
-    """
-    top = len(shapes) - 1
-    lo = np.minimum(lod.astype(np.int32), max(top - 1, 0))
-    upper = np.clip(lod - lo, 0.0, 1.0).astype(np.float32)  # the next level's share
-    strides = np.array([s[1] + 2 for s in shapes], dtype=np.int32)
-    starts = offsets[: top + 1].astype(np.int32)  # the whole pyramid has < 2^31 rows
-    index = index.reshape(-1, 2, 4)
-    weight = weight.reshape(-1, 2, 4)
-    for j, share in ((0, 1.0 - upper), (1, upper)):
-        level = np.minimum(lo + j, top) if j else lo
-        stride = strides.take(level)
-        scale = np.ldexp(np.float32(1.0), -level).astype(np.float32)
-        fx = px * scale + np.float32(0.5)  # +1 for the border, -0.5 to pixel centres
-        fy = py * scale + np.float32(0.5)
-        x0, y0 = np.floor(fx), np.floor(fy)
-        ax, ay = fx - x0, fy - y0
-        base = y0.astype(np.int32)
-        base *= stride
-        base += x0.astype(np.int32)
-        base += starts.take(level)
-        # Taps (0, 0), (1, 0), (0, 1), (1, 1): rows base + [0, 1, stride, stride + 1].
-        tap = index[:, j]
-        tap[:, 0] = base
-        tap[:, 1] = base + 1
-        base += stride
-        tap[:, 2] = base
-        tap[:, 3] = base + 1
-        bx, by = share - share * ax, 1 - ay  # the level's share folded into x
-        ax *= share
-        w = weight[:, j]
-        np.multiply(bx, by, out=w[:, 0])
-        np.multiply(ax, by, out=w[:, 1])
-        np.multiply(bx, ay, out=w[:, 2])
-        np.multiply(ax, ay, out=w[:, 3])
 
 
 def _frozen(*arrays):
@@ -377,28 +339,17 @@ def _build_camera_view(
         side = camera_view.side_weight(toward, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
-    # Near the plate's view: the blurred edge extension (8 trilinear taps) faded into the fill.
-    fill_taps = 0 if not filled else 2 * fill.sides
-    taps = 8 + fill_taps
-    near_index = np.empty((near.size, taps), np.int32)
-    near_weight = np.empty((near.size, taps), np.float32)
+    # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
+    # fill, which is written over every texel before it (extension.py).
     px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
-    ext_index, ext_weight = near_index[:, :8], np.empty((near.size, 8), np.float32)
-
-    def trilinear(a, b):
-        idx = np.empty((b - a, 8), np.int32)
-        _bilinear(px[a:b], py[a:b], near_lod[a:b], shapes, offsets, idx, ext_weight[a:b])
-        ext_index[a:b] = idx
-
-    for_blocks(trilinear, near.size, max_rows=CHUNK)
-    near_weight[:, :8] = ext_weight * near_ext[:, None]
-    groups = []
+    near_ext = near_ext if filled else None
+    edge = extension(near, px, py, near_lod, top, near_ext)
     fill_texels = None
+    main = (None, None, None)
     if filled:
         if latlong:  # compact: 2 bytes a texel, read per frame by fill_values
             if params.up is None:  # a texel's elevation is its row's: one step per row
                 fill_steps = camera_view.fill_bins_latlong(size)
-                near_steps = fill_steps[near // size]
             else:
                 fill_steps = np.empty(count, np.uint16)
 
@@ -409,25 +360,14 @@ def _build_camera_view(
                     )
 
                 for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
-                near_steps = fill_steps[near]
             fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
-            near_side = None if side is None else side[near % size]
-            near_fill = camera_view.fill_bin_taps(near_steps, fill.base, near_side)
-        else:  # the fill's taps for every texel, in order, the first group
-            all_index, all_weight = camera_view.fill_taps(directions, fill.base, side, params.up)
-            near_fill = all_index[near], all_weight[near]
-        near_index[:, 8:] = near_fill[0]
-        near_weight[:, 8:] = near_fill[1] * (1.0 - near_ext[:, None])
+        else:  # the fill's taps for every texel, in order, before the others
+            main = (None, *camera_view.fill_taps(directions, fill.base, side, params.up))
     seen_samples = None
     if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
         positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
         seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
-    main = (near, near_index, near_weight)
-    if filled and fill_texels is None:  # the fill's taps first, the others written over them
-        main, groups = (None, all_index, all_weight), [main, *groups]
-    for g in groups:
-        _frozen(*g)
-    _frozen(*main, *(fill_texels or ()))
+    _frozen(*(a for a in main if a is not None), *(fill_texels or ()))
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -438,10 +378,10 @@ def _build_camera_view(
         index=main[1],
         weight=main[2],
         texels=main[0],
-        groups=tuple(groups),
         fill=fill,
         fill_texels=fill_texels,
         supersample=seen_samples,
+        extension=edge,
     )
 
 
@@ -551,6 +491,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
 
     groups = [without(base.texels, base.index, base.weight), *(without(*g) for g in base.groups)]
     seen = None if base.supersample is None else base.supersample.without(taken)
+    edge = None if base.extension is None else base.extension.without(taken)
     full = share >= 1.0
     groups.append((ids[full], index[full], weight[full]))
     part = np.flatnonzero(~full)
@@ -586,6 +527,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         weight=near[2],
         groups=tuple(g for g in rest if g[0].size),
         supersample=seen if seen is not None and seen.texels.size else None,
+        extension=edge,
     )
 
 

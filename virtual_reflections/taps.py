@@ -18,3 +18,20 @@ def weighted_sum(taps, weight, out, rows_first: bool = True) -> None:
     spec = "tk,tk->t" if rows_first else "kt,kt->t"
     for c in range(3):
         np.einsum(spec, taps[..., c], weight, out=out[:, c])
+
+
+_RGB = np.dtype((np.void, 12))  # one float32 RGB row as a single item
+
+
+def put_rows(out, texels, rows) -> None:
+    """out[texels] = rows, for out (T, 3) C-contiguous float32 and rows (n, 3) float32: each
+    row moved as one 12-byte item (NumPy's fancy assignment of (n, 3) rows is ~2.5 times
+    slower)."""
+    items = np.ascontiguousarray(rows, np.float32).view(_RGB).ravel()
+    np.put(out.view(_RGB).ravel(), texels, items)
+
+
+def take_rows(source, texels) -> np.ndarray:
+    """source[texels] as a new (n, 3) float32 array, for source (T, 3) C-contiguous float32,
+    each row read as one 12-byte item (~3 times faster than fancy indexing)."""
+    return np.take(source.view(_RGB).ravel(), texels).view(np.float32).reshape(-1, 3)

@@ -13,7 +13,7 @@ bytes per texel.
 Two back ends give the same samples (`gather`):
 
 - NumPy (always there): per block of a run, the 8 rows and weights are worked out and read
-  with one `take` and a weighted sum — the arithmetic of `table._bilinear`.
+  with one `take` and a weighted sum.
 - OpenCV's `remap` (optional, used when `cv2` imports; VR_GATHER=numpy forces NumPy): each
   run is two remaps (levels L and L + 1) and a blend (`blendLinear`), and the way back to map
   order one nearest-pixel remap; level 0 may be the plate itself (`gather`'s `plate`). Its
@@ -57,11 +57,37 @@ class Trilinear:
     rank: np.ndarray
     singles: tuple = ()  # per run: True when its shares are all 0 (one bilinear sample each)
 
+    def keep_rows(self, keep: np.ndarray, counts) -> Trilinear:
+        """The runs without their rows where `keep` is False: `keep` holds, run by run, one
+        bool per used row (the first counts[r] rows of run r; the rest is padding). The
+        runs are padded again to whole rows of ROW; the result has no rank (it is read by
+        `gather_runs`, in run order)."""
+        xs, ys, ups, kept, levels, singles, starts = [], [], [], [], [], [], [0]
+        offset = 0
+        for r, count in enumerate(counts):
+            mine = keep[offset : offset + count]
+            offset += count
+            n = int(mine.sum())
+            if not n:
+                continue
+            rows = slice(self.starts[r], self.starts[r] + count)
+            pad = -(-n // ROW) * ROW - n  # padding: pixel (0, 0) of the level, share 0
+            xs += [self.x[rows][mine], np.ones(pad, np.float32)]
+            ys += [self.y[rows][mine], np.ones(pad, np.float32)]
+            ups += [self.upper[rows][mine], np.zeros(pad, np.float16)]
+            kept.append(n)
+            levels.append(self.levels[r])
+            singles.append(self.singles[r])
+            starts.append(starts[-1] + n + pad)
+        x, y, upper = (np.concatenate(v) for v in (xs, ys, ups))
+        for array in (x, y, upper):
+            array.flags.writeable = False
+        return Trilinear(tuple(levels), tuple(starts), x, y, upper, None, tuple(singles))
 
 def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
     mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
-    next level, blended by the fraction (as `table._bilinear`); `shape`: the map's (H, W)."""
+    next level, blended by the fraction; `shape`: the map's (H, W) (a subset of texels: (n, 1))."""
     total = lod.size
     keys = 2 * top + 2
     # Runs by level, and within a level first the texels that read the next level, then those
@@ -158,6 +184,28 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=Non
     `plate`: level 0 itself ((H, W, 3) float32, no border), for OpenCV when `source` does
     not hold level 0 (its remaps read past the edge as the border does: the edge)."""
     use = use or backend()
+    values = gather_runs(samples, source, shapes, offsets, use, plate)
+    height, width = samples.rank.shape[:2]
+    if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
+        cv = cv2()
+        image = values.reshape(-1, ROW, 3)
+        cv.remap(image, samples.rank, None, cv.INTER_NEAREST, dst=out.reshape(height, width, 3))
+        return
+    rank = samples.rank.reshape(-1, 2)
+
+    def back(a, b):  # the runs' rows -> map order
+        rows = rank[a:b, 1].astype(np.int32)
+        rows *= ROW
+        rows += rank[a:b, 0]
+        np.take(values, rows, axis=0, out=out[a:b])
+
+    for_blocks(back, rank.shape[0], max_rows=BLOCK)
+
+
+def gather_runs(samples: Trilinear, source, shapes, offsets, use=None, plate=None):
+    """The samples read as `gather` reads them, left in the runs' order: (rows, 3) float32,
+    run r's values at rows starts[r] .. (padding rows hold pixel (0, 0) of their level)."""
+    use = use or backend()
     if plate is not None and use != "opencv":
         raise ValueError("the plate as level 0 is for the OpenCV back end")
     top = len(shapes) - 1
@@ -179,21 +227,7 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=Non
             _run_numpy(
                 samples, a, b, stride, start, nxt > level, source, values, samples.singles[r]
             )
-    height, width = samples.rank.shape[:2]
-    if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
-        cv = cv2()
-        image = values.reshape(-1, ROW, 3)
-        cv.remap(image, samples.rank, None, cv.INTER_NEAREST, dst=out.reshape(height, width, 3))
-        return
-    rank = samples.rank.reshape(-1, 2)
-
-    def back(a, b):  # the runs' rows -> map order
-        rows = rank[a:b, 1].astype(np.int32)
-        rows *= ROW
-        rows += rank[a:b, 0]
-        np.take(values, rows, axis=0, out=out[a:b])
-
-    for_blocks(back, rank.shape[0], max_rows=BLOCK)
+    return values
 
 
 def _level(source, shapes, offsets, level):

@@ -166,3 +166,48 @@ def test_opencv_reads_level_0_from_the_plate_as_from_the_pyramid():
     part = build_pyramid(plate, first=1)
     gather(samples, part, shapes, level_offsets(shapes, 1), direct, use="opencv", plate=plate)
     assert np.abs(direct - full).max() < 1e-6
+
+
+@pytest.mark.parametrize("use", ["numpy", pytest.param("opencv", marks=needs_cv2)])
+def test_the_edge_extension_fades_a_trilinear_sample_into_the_fill(monkeypatch, use):
+    """extension.py: the texels near the plate's view read one trilinear sample (as the plain
+    lookup) faded into the fill already in the map by their weight; without a weight, the
+    sample alone; `without` drops texels and keeps the others' values."""
+    from virtual_reflections import extension as ext_module
+
+    monkeypatch.setenv("VR_GATHER", use)
+    px, py, lod = _samples(n=2500)
+    shapes = level_shapes(H, W)
+    flat = build_pyramid(_plate(smooth=True))
+    expected = _reference(flat, shapes, px, py, lod)
+    rng = np.random.default_rng(4)
+    texels = np.sort(rng.permutation(9000)[: px.size])
+    weight = rng.random(px.size).astype(np.float32)
+    fill = rng.random((9000, 3)).astype(np.float32)
+    tolerance = 2e-3 if use == "numpy" else 1 / 32  # float16 shares; OpenCV's 1/32 pixel
+    for share in (weight, None):
+        ext = ext_module.extension(texels, px, py, lod, len(shapes) - 1, share)
+        out = fill.copy()
+        ext_module.apply(ext, flat, shapes, level_offsets(shapes), out)
+        want = (
+            expected if share is None else fill[texels] + share[:, None] * (expected - fill[texels])
+        )
+        assert np.abs(out[texels] - want).max() < tolerance
+        others = np.setdiff1d(np.arange(9000), texels)
+        assert np.array_equal(out[others], fill[others])  # only its texels are written
+        # 10 bytes a row of the runs, 4 + 4 a texel (its map index, its weight): no rank
+        per_texel = 8 if share is not None else 4
+        assert ext.samples.rank is None
+        assert ext.samples.x.nbytes * 2.5 + per_texel * px.size == (
+            ext.samples.x.nbytes + ext.samples.y.nbytes + ext.samples.upper.nbytes
+            + ext.texels.nbytes + (0 if ext.weight is None else ext.weight.nbytes)
+        )  # fmt: skip
+        drop = np.zeros(9000, bool)
+        drop[texels[::3]] = True
+        less = ext.without(drop)
+        again = fill.copy()
+        ext_module.apply(less, flat, shapes, level_offsets(shapes), again)
+        assert np.array_equal(again[texels[::3]], fill[texels[::3]])
+        kept = np.setdiff1d(texels, texels[::3])
+        assert np.abs(again[kept] - out[kept]).max() < 1e-6
+        assert ext.without(np.ones(9000, bool)) is None
