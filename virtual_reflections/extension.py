@@ -38,15 +38,11 @@ class Extension:
         keep = ~drop[self.texels]
         if not keep.any():
             return None
-        ends = np.cumsum(self.counts)
-        counts = (
-            tuple(int(n) for n in np.add.reduceat(keep, ends - self.counts) if n)
-            if len(self.counts)
-            else ()
-        )
+        firsts = np.cumsum(self.counts) - self.counts  # every run holds texels
+        counts = tuple(int(n) for n in np.add.reduceat(keep, firsts) if n)
+        samples = self.samples.keep_rows(keep, self.counts)
         weight = None if self.weight is None else self.weight[keep]
-        return _frozen(Extension(self.samples.keep_rows(keep, self.counts), counts,
-                                 self.texels[keep], weight))  # fmt: skip
+        return _frozen(Extension(samples, counts, self.texels[keep], weight))
 
 
 def _frozen(ext: Extension) -> Extension:
@@ -62,10 +58,8 @@ def extension(texels, px, py, lod, top: int, weight=None) -> Extension | None:
     texels = np.asarray(texels, np.int64)
     if texels.size == 0:
         return None
-    samples = trilinear_samples(
-        np.asarray(px, np.float32), np.asarray(py, np.float32), np.asarray(lod, np.float32),
-        top, (texels.size, 1),
-    )  # fmt: skip
+    px, py, lod = (np.asarray(v, np.float32) for v in (px, py, lod))
+    samples = trilinear_samples(px, py, lod, top, (texels.size, 1))
     # Each texel's row of the runs; the texels and weights put in that order, so a frame
     # reads the runs' values in place (no way back to map order but the texels themselves).
     rank = samples.rank.reshape(-1, 2)

@@ -84,6 +84,7 @@ class Trilinear:
             array.flags.writeable = False
         return Trilinear(tuple(levels), tuple(starts), x, y, upper, None, tuple(singles))
 
+
 def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     """The compact samples of texels at level-0 plate positions (px, py) (T,) float32 with
     mip level `lod` (T,) float32 in [0, top]: bilinear on floor(lod) (at most top - 1) and the
