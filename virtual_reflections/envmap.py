@@ -82,8 +82,9 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             source = pyramids[key] = np.empty((rows + 2 * FILL_BINS, 3), np.float32)
         build_pyramid(plate, table.levels, first, out=source[:rows])
     pyramid = source[:rows]
+    shapes = level_shapes(seg.height, seg.width, table.levels)
+    offsets = level_offsets(shapes, first)
     if fill is not None:
-        shapes = level_shapes(seg.height, seg.width, table.levels)
         level = level_view(pyramid, shapes, fill.level, first)
         fill_profile(
             level,
@@ -113,15 +114,12 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             # (blocks of 8192 texels took twice as long on a 4096-wide map: the pool's cost)
             for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, CHUNK // width))
     if table.trilinear is not None:  # every texel, the groups written over it
-        shapes = level_shapes(seg.height, seg.width, table.levels)
-        offsets = level_offsets(shapes, first)
         level0 = np.ascontiguousarray(plate, np.float32) if direct else None
         gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
     if table.index is not None:
         _gather(source, table.texels, table.index, table.weight, out)
     if table.extension is not None:  # over the fill written above
-        shapes = level_shapes(seg.height, seg.width, table.levels)
-        apply_extension(table.extension, pyramid, shapes, level_offsets(shapes, first), out)
+        apply_extension(table.extension, pyramid, shapes, offsets, out)
     if table.supersample is not None:  # level 0 read from the plate itself
         rows = np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
         gather_supersample(table.supersample, source, out, plate=rows)

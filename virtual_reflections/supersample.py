@@ -45,7 +45,7 @@ class Supersample:
     base: np.ndarray
     fx: np.ndarray
     fy: np.ndarray
-    on_plate: tuple = ()
+    on_plate: tuple
 
     def without(self, drop: np.ndarray) -> Supersample:
         """These samples without the texels where the (T,) bool mask `drop` is set."""
@@ -149,11 +149,9 @@ def gather(samples: Supersample, source, out, plate=None) -> None:
     for r, stride in enumerate(samples.strides):
         a = samples.starts[r]
         corners = (0, 1, stride, stride + 1)
-        rows = source
-        if r < len(samples.on_plate) and samples.on_plate[r]:
-            if plate is None:
-                raise ValueError("these samples read level 0 from the plate: pass it")
-            rows = plate
+        rows = plate if samples.on_plate[r] else source
+        if rows is None:
+            raise ValueError("these samples read level 0 from the plate: pass it")
 
         def block(c, d, a=a, corners=corners, rows=rows):
             c, d = a + c, a + d

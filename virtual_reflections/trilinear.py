@@ -46,7 +46,8 @@ class Trilinear:
     x, y: (n,) float32 positions on the run's level (bordered pixel coordinates).
     upper: (n,) float16, the next level's share.
     rank: (H, W, 2) int16, each texel's row of the runs as (row % ROW, row // ROW): the
-    runs' results seen as an image ROW wide, a nearest-pixel map back to map order.
+    runs' results seen as an image ROW wide, a nearest-pixel map back to map order; None for
+    samples read in the runs' own order (`gather_runs`, extension.py).
     """
 
     levels: tuple
@@ -62,7 +63,7 @@ class Trilinear:
         bool per used row (the first counts[r] rows of run r; the rest is padding). The
         runs are padded again to whole rows of ROW; the result has no rank (it is read by
         `gather_runs`, in run order)."""
-        xs, ys, ups, kept, levels, singles, starts = [], [], [], [], [], [], [0]
+        xs, ys, ups, levels, singles, starts = [], [], [], [], [], [0]
         offset = 0
         for r, count in enumerate(counts):
             mine = keep[offset : offset + count]
@@ -75,7 +76,6 @@ class Trilinear:
             xs += [self.x[rows][mine], np.ones(pad, np.float32)]
             ys += [self.y[rows][mine], np.ones(pad, np.float32)]
             ups += [self.upper[rows][mine], np.zeros(pad, np.float16)]
-            kept.append(n)
             levels.append(self.levels[r])
             singles.append(self.singles[r])
             starts.append(starts[-1] + n + pad)
