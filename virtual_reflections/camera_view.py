@@ -618,8 +618,8 @@ def fill_bins_latlong(size: int, up=None, rows=None, out=None):
     h = size // 2
     rows = range(h)[rows or slice(None)]
     el = -np.pi * ((np.arange(rows.start, rows.stop, rows.step) + 0.5) / h - 0.5)  # (n,)
-    if up is None:
-        elevation = np.degrees(el)
+    if up is None:  # one value per row
+        steps = _steps(np.degrees(el).astype(np.float32))
     else:  # d . up = cos(el) (sin(az) ux + cos(az) uz) + sin(el) uy, d a unit vector
         ux, uy, uz = np.asarray(up, np.float64) / np.linalg.norm(up)
         az = -2.0 * np.pi * ((np.arange(size) + 0.5) / size - 0.5)
@@ -635,18 +635,10 @@ def fill_bins_latlong(size: int, up=None, rows=None, out=None):
         np.arcsin(elevation, out=elevation)
         np.degrees(elevation, out=elevation)
         steps = _steps(elevation)
-        if mirrored:
-            out = np.empty(len(rows) * size, np.uint16) if out is None else out
-            both = out.reshape(len(rows), size)
-            both[:, :half] = steps
-            both[:, half:] = steps[:, ::-1]
-            return out
-        out = np.empty(steps.size, np.uint16) if out is None else out
-        out[:] = steps.ravel()
-        return out
-    steps = _steps(elevation.astype(np.float32).ravel())
+        if mirrored:  # the other half of the columns, mirrored
+            steps = np.concatenate((steps, steps[:, ::-1]), axis=1)
     out = np.empty(steps.size, np.uint16) if out is None else out
-    out[:] = steps
+    out[:] = steps.ravel()
     return out
 
 
