@@ -50,6 +50,7 @@ import numpy as np
 
 from .layouts import cube_directions
 from .parallel import CHUNK, for_blocks
+from .products import matmul
 
 FILL_BINS = 181  # the fill profile: 1-degree bins of camera-frame elevation, -90 .. 90
 FILL_ROWS = 96  # the fill is computed on the first mip level at most this many rows high
@@ -680,12 +681,12 @@ def fill_values(steps, side, lookup, out) -> None:
             return
         right = np.take(lookup[1], steps, axis=0)
         # Rows of 3 W floats = left * side + right * (1 - side), per channel: one matrix
-        # product (rows, 6) @ (6, 3 W) writes them in order (BLAS, over the cores).
+        # product (rows, 6) @ (6, 3 W) writes them in order (BLAS, in pieces over the cores).
         mix = np.zeros((6, side.size), np.float32)
         for c in range(3):
             mix[c, c::3] = side[c::3]
             mix[3 + c, c::3] = 1 - side[c::3]
-        np.matmul(np.concatenate((left, right), axis=1), mix, out=out.reshape(steps.size, -1))
+        matmul(np.concatenate((left, right), axis=1), mix, out.reshape(steps.size, -1))
         return
     if side is None:
         np.take(lookup[0], steps, axis=0, out=out)

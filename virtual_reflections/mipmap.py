@@ -14,6 +14,7 @@ import numpy as np
 
 from .opencv import backend, cv2
 from .parallel import for_blocks
+from .products import matmul
 
 
 def level_shapes(height: int, width: int, levels: int | None = None) -> list[tuple[int, int]]:
@@ -86,7 +87,9 @@ def _pairs(rows: np.ndarray, dst: np.ndarray, we: int) -> None:
     already summed), scaled by 1/4; an odd last column is repeated."""
     n = rows.shape[0]
     pairs = np.ascontiguousarray(rows[:, :we]).reshape(-1, 6)
-    dst[:, : we // 2] = (pairs @ _PAIR_SUM).reshape(n, we // 2, 3)
+    sums = np.empty((pairs.shape[0], 3), np.float32)
+    matmul(pairs, _PAIR_SUM, sums, threads=False)  # called on the engine's threads
+    dst[:, : we // 2] = sums.reshape(n, we // 2, 3)
     if rows.shape[1] % 2:
         dst[:, -1] = 0.5 * rows[:, -1]
 

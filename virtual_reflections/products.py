@@ -1,0 +1,40 @@
+"""Matrix products in pieces that the BLAS works on the calling thread.
+
+NumPy hands a product to its BLAS (OpenBLAS in the wheels, and in Blender), which spreads one
+of more than ~2^18 multiply-adds over every core and then keeps its threads spinning for a
+while. The engine's per-frame work runs on its own threads (parallel.py), so on a 2-core
+machine the steps after such a product ran on what the spinning threads left: Camera View's
+frame at 2048 wide took 48-64 ms against 44-47 with one BLAS thread (`OPENBLAS_NUM_THREADS=1`,
+measured). The products here are split into pieces of at most PIECE multiply-adds, each
+below that threshold, and the pieces shared over the engine's threads: as fast alone (these
+products write far more than they compute) and nothing left spinning.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .parallel import for_blocks
+
+PIECE = 1 << 17  # multiply-adds per BLAS call: below OpenBLAS's threshold for its threads
+
+
+def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray, threads: bool = True) -> None:
+    """out (m, n) = a (m, k) @ b (k, n), in pieces of rows and columns (each at most PIECE
+    multiply-adds), shared over the engine's threads (`threads` False: all on this one, for a
+    caller that is itself one of them); out may be a view with rows apart in memory."""
+    m, k = a.shape
+    n = b.shape[1]
+    cols = n if n * k <= PIECE else max(1, PIECE // (64 * k))
+    rows = max(1, PIECE // (k * cols))
+
+    def block(s, e):
+        for r in range(s, e, rows):
+            t = min(r + rows, e)
+            for c in range(0, n, cols):
+                np.matmul(a[r:t], b[:, c : c + cols], out=out[r:t, c : c + cols])
+
+    if threads:
+        for_blocks(block, m, min_rows=rows)
+    else:
+        block(0, m)
