@@ -17,6 +17,7 @@ import numpy as np
 from .parallel import for_blocks
 
 PIECE = 1 << 17  # multiply-adds per BLAS call: below OpenBLAS's threshold for its threads
+ROWS = 128  # rows a piece has at least, unless it is narrower than PIECE allows (fewer calls)
 
 
 def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray, threads: bool = True) -> None:
@@ -25,7 +26,7 @@ def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray, threads: bool = True) 
     caller that is itself one of them); out may be a view with rows apart in memory."""
     m, k = a.shape
     n = b.shape[1]
-    cols = n if n * k <= PIECE else max(1, PIECE // (64 * k))
+    cols = min(n, max(1, PIECE // (k * ROWS)))  # pieces at least ROWS high where they can be
     rows = max(1, PIECE // (k * cols))
 
     def block(s, e):
