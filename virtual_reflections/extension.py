@@ -77,7 +77,7 @@ def extension(texels, px, py, lod, top: int, weight=None) -> Extension | None:
 def apply(ext: Extension, source, shapes, offsets, out) -> None:
     """out[texels] (out: (T, 3) float32, the fill already written there) = the extension
     read from the flat bordered pyramid `source`, faded into the fill by its weight."""
-    values = gather_runs(ext.samples, source, shapes, offsets)
+    values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
     done = 0
     for r, count in enumerate(ext.counts):
         a = ext.samples.starts[r]

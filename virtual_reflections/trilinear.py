@@ -203,9 +203,11 @@ def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=Non
     for_blocks(back, rank.shape[0], max_rows=BLOCK)
 
 
-def gather_runs(samples: Trilinear, source, shapes, offsets, use=None, plate=None):
+def gather_runs(samples: Trilinear, source, shapes, offsets, use=None, plate=None, counts=None):
     """The samples read as `gather` reads them, left in the runs' order: (rows, 3) float32,
-    run r's values at rows starts[r] .. (padding rows hold pixel (0, 0) of their level)."""
+    run r's values at rows starts[r] .. (padding rows hold pixel (0, 0) of their level).
+    `counts`: per run, how many of its first rows are wanted; NumPy then reads only those
+    (the rest of the run's rows are left undefined)."""
     use = use or backend()
     if plate is not None and use != "opencv":
         raise ValueError("the plate as level 0 is for the OpenCV back end")
@@ -225,8 +227,9 @@ def gather_runs(samples: Trilinear, source, shapes, offsets, use=None, plate=Non
         else:
             stride = (shapes[level][1] + 2, shapes[nxt][1] + 2)
             start = (int(offsets[level]), int(offsets[nxt]))
+            stop = b if counts is None else a + counts[r]
             _run_numpy(
-                samples, a, b, stride, start, nxt > level, source, values, samples.singles[r]
+                samples, a, stop, stride, start, nxt > level, source, values, samples.singles[r]
             )
     return values
 
@@ -272,8 +275,8 @@ def _run_numpy(samples, a, b, stride, start, halve, source, values, single=False
         taps = np.take(source, index, axis=0, mode="clip")
         weighted_sum(taps, weight, values[c:d], rows_first=False)
 
-    span = b - a
-    for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK, max_rows=BLOCK)
+    span = b - a  # a run of a few blocks' size still goes over the cores
+    for_blocks(lambda c, d: block(a + c, a + d), span, min_rows=BLOCK // 4, max_rows=BLOCK)
 
 
 def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
