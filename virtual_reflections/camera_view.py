@@ -523,17 +523,19 @@ def fill_profile(
     eps = 1e-3 * pixels.mean(0) + 1e-12  # scale-free: black pixels count as 1/1000 of the mean
     logs = np.log(pixels + eps)
     out = np.empty((size, 3), np.float32) if out is None else out
+    # Per channel, the sums of the logs (and of the pixels) in every bin of every side, once.
+    sums = [
+        [np.bincount(bins, source[:, c], size) for c in range(3)]
+        for source in ((logs, pixels) if energy > 0 else (logs,))
+    ]
     for k in range(sides):
         lo, hi = window[k]
         n = counts[k][hi] - counts[k][lo]
         rows = slice(k * FILL_BINS, (k + 1) * FILL_BINS)
         mean = np.empty((FILL_BINS, 3), np.float64)
         for c in range(3):
-            for source, target in ((logs, out), (pixels, mean)):
-                if target is mean and energy <= 0:
-                    continue
-                t = np.bincount(bins, source[:, c], size)[rows]
-                total = np.concatenate(([0.0], np.cumsum(t)))
+            for per_bin, target in zip(sums, (out, mean)):
+                total = np.concatenate(([0.0], np.cumsum(per_bin[c][rows])))
                 target[rows if target is out else slice(None), c] = (total[hi] - total[lo]) / n
             out[rows, c] = np.exp(out[rows, c]) - eps[c]
         if energy > 0:
