@@ -1,7 +1,7 @@
 """Matrix products in pieces that the BLAS works on the calling thread.
 
-NumPy hands a product to its BLAS (OpenBLAS in the wheels, and in Blender), which spreads one
-of more than ~2^18 multiply-adds over every core and then keeps its threads spinning for a
+NumPy hands a product to its BLAS (OpenBLAS in NumPy's PyPI wheels), which spreads one of
+more than ~2^18 multiply-adds over every core and then keeps its threads spinning for a
 while. The engine's per-frame work runs on its own threads (parallel.py), so on a 2-core
 machine the steps after such a product ran on what the spinning threads left: Camera View's
 frame at 2048 wide took 48-64 ms against 44-47 with one BLAS thread (`OPENBLAS_NUM_THREADS=1`,
@@ -20,10 +20,10 @@ PIECE = 1 << 17  # multiply-adds per BLAS call: below OpenBLAS's threshold for i
 ROWS = 128  # rows a piece has at least, unless it is narrower than PIECE allows (fewer calls)
 
 
-def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray, threads: bool = True) -> None:
+def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """out (m, n) = a (m, k) @ b (k, n), in pieces of rows and columns (each at most PIECE
-    multiply-adds), shared over the engine's threads (`threads` False: all on this one, for a
-    caller that is itself one of them); out may be a view with rows apart in memory."""
+    multiply-adds) shared over the engine's threads; out may be a view with rows apart in
+    memory. Not for a caller that is itself one of those threads."""
     m, k = a.shape
     n = b.shape[1]
     cols = min(n, max(1, PIECE // (k * ROWS)))  # pieces at least ROWS high where they can be
@@ -35,7 +35,4 @@ def matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray, threads: bool = True) 
             for c in range(0, n, cols):
                 np.matmul(a[r:t], b[:, c : c + cols], out=out[r:t, c : c + cols])
 
-    if threads:
-        for_blocks(block, m, min_rows=rows)
-    else:
-        block(0, m)
+    for_blocks(block, m, min_rows=rows)

@@ -24,6 +24,7 @@ Two back ends give the same samples (`gather`):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -288,22 +289,18 @@ def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
     x = samples.x[a:b].reshape(-1, ROW)
     y = samples.y[a:b].reshape(-1, ROW)
     (low, low_shift), (high, high_shift) = low, high
-    coords = [np.empty_like(x) for _ in range(2 if low_shift else 0)]
-    if not single:
-        coords += [np.empty_like(x) for _ in range(4)]  # the next level's x, y; the weights
-    upper = samples.upper[a:b].reshape(x.shape).view(np.uint16)
-    scaled = _scaled_shares()
+    lx, ly = (np.empty_like(x), np.empty_like(y)) if low_shift else (x, y)
+    if not single:  # the next level's coordinates, the blend's weights
+        hx, hy, w0, w1 = (np.empty_like(x) for _ in range(4))
+        upper = samples.upper[a:b].reshape(x.shape).view(np.uint16)
 
     def prepare(r0, r1):
         rows = slice(r0, r1)
-        k = 0
         if low_shift:
-            np.subtract(x[rows], np.float32(low_shift), out=coords[0][rows])
-            np.subtract(y[rows], np.float32(low_shift), out=coords[1][rows])
-            k = 2
+            np.subtract(x[rows], np.float32(low_shift), out=lx[rows])
+            np.subtract(y[rows], np.float32(low_shift), out=ly[rows])
         if single:
             return
-        hx, hy, w0, w1 = coords[k : k + 4]
         for src, dst in ((x, hx), (y, hy)):
             if halve:
                 np.multiply(src[rows], np.float32(0.5), out=dst[rows])
@@ -312,11 +309,10 @@ def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
                 dst[rows] = src[rows]
             if high_shift:
                 dst[rows] -= np.float32(high_shift)
-        np.take(scaled, upper[rows], out=w1[rows])
+        np.take(_scaled_shares(), upper[rows], out=w1[rows])
         np.subtract(np.float32(2.0**17), w1[rows], out=w0[rows])
 
     for_blocks(prepare, x.shape[0], min_rows=64, max_rows=64)
-    lx, ly = (coords[0], coords[1]) if low_shift else (x, y)
 
     def remap(image, x, y, dst=None):
         return cv.remap(image, x, y, cv.INTER_LINEAR, dst=dst, borderMode=cv.BORDER_REPLICATE)
@@ -324,22 +320,18 @@ def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
     if single:
         remap(low, lx, ly, dst=values[a:b].reshape(x.shape + (3,)))
         return
-    hx, hy, w0, w1 = coords[-4:]
-    first = remap(low, lx, ly)
-    second = remap(high, hx, hy)
+    first, second = remap(low, lx, ly), remap(high, hx, hy)
     # The blend low + up (high - low) as OpenCV's blendLinear, which divides by the weights'
     # sum + 1e-5: weights scaled by 2^17 make that division exact in float32.
     cv.blendLinear(first, second, w0, w1, dst=values[a:b].reshape(first.shape))
 
 
-_SCALED = []
-
-
+@functools.cache
 def _scaled_shares() -> np.ndarray:
     """(65536,) float32: every float16 share (by its bits) times 2^17, the blend's weight:
     one lookup per texel where NumPy's float16 conversion costs about twice as much."""
-    if not _SCALED:
-        with np.errstate(invalid="ignore", over="ignore"):
-            bits = np.arange(65536, dtype=np.uint32).astype(np.uint16)
-            _SCALED.append(bits.view(np.float16).astype(np.float32) * np.float32(2.0**17))
-    return _SCALED[0]
+    with np.errstate(invalid="ignore", over="ignore"):
+        bits = np.arange(65536, dtype=np.uint32).astype(np.uint16)
+        scaled = bits.view(np.float16).astype(np.float32) * np.float32(2.0**17)
+    scaled.flags.writeable = False  # shared by every call
+    return scaled
