@@ -75,66 +75,65 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
     cx, cy = (dtype(v) for v in seg.centre)
     W, H = dtype(seg.width), dtype(seg.height)
 
-    # Face choice as OpenEXR's CubeMap::faceAndPixelPosition: x wins ties, then y.
-    on_x = (ax >= ay) & (ax >= az)
-    on_y = ~on_x & (ay >= az)
-    on_z = ~(on_x | on_y)
-    back = on_z & (z > 0)
-
+    # The back face and the four side faces in one formula, on every direction at once (no
+    # gathers): with m = max(|x|, |y|, |z|), the cube point is (u, v) = (x, y) / m and the
+    # depth t = (1 - z / m) / 2, and the plate position lerps between the split maps of X
+    # and of `inner`: x = cx + u (sX + t (sI - sX)), sX and sI the slopes of the splits on
+    # u's side (likewise y). On the back face t = 0 (region X); on a side face the dominant
+    # coordinate is +-1 (X's and `inner`'s edges); the faces meet without seams, so ties
+    # need no rule. The front face (-Z) is worked out after, for its directions alone.
+    m = np.maximum(ax, ay)
+    front = np.negative(z) > m  # -Z beats both (as OpenEXR: x wins ties, then y)
+    np.maximum(m, az, out=m)
     with np.errstate(divide="ignore", invalid="ignore"):
-        # Back face (+Z): region X.
-        idx = _where(back)
-        r = 1 / z[idx]
-        out[idx, 0] = _split(x[idx] * r, X.x0, cx, X.x1)
-        out[idx, 1] = _split(y[idx] * r, X.y0, cy, X.y1)
+        r = np.reciprocal(m)
+        t = z * r
+        t *= dtype(-0.5)
+        t += dtype(0.5)  # 0 at the back edge, 1 at the front
+        cube = [d[:, axis] * r for axis in (0, 1)]  # the cube point (u, v)
+        for axis, (x0, x1, i0, i1, c) in enumerate(
+            ((X.x0, X.x1, inner.x0, inner.x1, cx), (X.y0, X.y1, inner.y0, inner.y1, cy))
+        ):
+            u = cube[axis]
+            plus = u >= 0
+            # Slopes on each side of the centre line: X's, and the step to inner's.
+            s_plus, s_minus = x0 - c, c - x1
+            d_plus, d_minus = (i0 - c) - s_plus, (c - i1) - s_minus
+            slope = np.where(plus, d_plus, d_minus)
+            slope *= t
+            slope += np.where(plus, s_plus, s_minus)
+            slope *= u
+            slope += c
+            out[:, axis] = slope
 
-        # Left / right faces (+X / -X): regions L and R. t: 0 at the back edge, 1 at the front.
-        idx = _where(on_x & (ax > 0))
-        r = 1 / ax[idx]
-        left = x[idx] > 0
-        w, t = y[idx] * r, 0.5 - 0.5 * z[idx] * r
-        out[idx, 0] = _lerp(np.where(left, X.x0, X.x1), np.where(left, inner.x0, inner.x1), t)
-        out[idx, 1] = _lerp(_split(w, X.y0, cy, X.y1), _split(w, inner.y0, cy, inner.y1), t)
+        # Front face (-Z): the ring F, four triangles with inverted orientation, F'_L and
+        # F'_R where |h| >= |w|, else F'_T and F'_B. A point (h, w) of the face, scaled by
+        # 1 / max(|h|, |w|) to the face's edge, (qh, qw), lies on its triangle's base (on
+        # `inner`, split at the centre lines) and its apex on the image border, at the same
+        # position along the edge (with n triangles: the sub-triangle's middle): the position
+        # lerps from base to apex by rad = 1 - max(|h|, |w|).
+        idx = _where(front) if front.any() else None
+        if idx is not None:
+            h, w = cube[0][idx], cube[1][idx]  # on this face m = |z|
+            big = np.maximum(np.abs(h), np.abs(w))
+            horiz = np.abs(h) >= big
+            rad = 1 - big
+            centre = big == 0  # straight behind the camera: as F'_R's apex line
+            big[centre] = 1
+            h[centre] = -1
+            qh, qw = h / big, w / big  # the major coordinate is +-1, the minor s
+            ah, aw = qh, qw
+            if triangles:  # the minor coordinate at its sub-triangle's apex
+                k = triangles // 4
+                apex = np.clip(np.floor((np.where(horiz, qw, qh) + 1.0) * (0.5 * k)), 0, k - 1)
+                apex = (2.0 * apex + 1.0) / k - 1.0
+                ah, aw = np.where(horiz, qh, apex), np.where(horiz, apex, qw)
+            border = dtype(0)
+            out[idx, 0] = _lerp(_split(qh, inner.x0, cx, inner.x1), _split(ah, border, cx, W), rad)
+            out[idx, 1] = _lerp(_split(qw, inner.y0, cy, inner.y1), _split(aw, border, cy, H), rad)
 
-        # Top / bottom faces (+Y / -Y): regions T and B.
-        idx = _where(on_y)
-        r = 1 / ay[idx]
-        top = y[idx] > 0
-        h, t = x[idx] * r, 0.5 - 0.5 * z[idx] * r
-        out[idx, 1] = _lerp(np.where(top, X.y0, X.y1), np.where(top, inner.y0, inner.y1), t)
-        out[idx, 0] = _lerp(_split(h, X.x0, cx, X.x1), _split(h, inner.x0, cx, inner.x1), t)
-
-        # Front face (-Z): the ring F, four triangles with inverted orientation.
-        idx = _where(on_z & ~back)
-        r = 1 / az[idx]
-        h, w = x[idx] * r, y[idx] * r
-        horiz = np.abs(h) >= np.abs(w)  # in F'_L or F'_R, else F'_T or F'_B
-        major = np.where(horiz, h, w)
-        rad = 1.0 - np.abs(major)  # 0 on the cube edge, 1 at the face centre
-        s = np.nan_to_num(np.where(horiz, w, h) / np.abs(major), nan=0.0, posinf=1.0, neginf=-1.0)
-        if triangles:
-            k = triangles // 4
-            i = np.clip(np.floor((s + 1.0) * (0.5 * k)), 0, k - 1)
-            apex_s = (2.0 * i + 1.0) / k - 1.0
-        else:
-            apex_s = s
-        plus = major > 0  # toward +X (left) or +Y (top)
-        # Base on `inner`, apex on the image border, both split at the centre lines.
-        base_fixed = np.where(
-            horiz, np.where(plus, inner.x0, inner.x1), np.where(plus, inner.y0, inner.y1)
-        )
-        apex_fixed = np.where(plus, 0.0, np.where(horiz, W, H))
-        base_along = np.where(
-            horiz, _split(s, inner.y0, cy, inner.y1), _split(s, inner.x0, cx, inner.x1)
-        )
-        apex_along = np.where(horiz, _split(apex_s, 0.0, cy, H), _split(apex_s, 0.0, cx, W))
-        fixed = _lerp(base_fixed, apex_fixed, rad)
-        along = _lerp(base_along, apex_along, rad)
-        out[idx, 0] = np.where(horiz, fixed, along)
-        out[idx, 1] = np.where(horiz, along, fixed)
-
-    # The zero vector (no face): the centre of X (|x| + |y| + |z| is 0 for it alone).
-    zero = np.flatnonzero((ax + ay) + az == 0)
+    # The zero vector (no face): the centre of X (m is 0 for it alone).
+    zero = np.flatnonzero(m == 0)
     if zero.size:
         out[zero] = (cx, cy)
     # Within the plate: the lower bound over the whole array at once (contiguous), the upper
