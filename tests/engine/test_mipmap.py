@@ -30,13 +30,29 @@ def test_levels_are_2x2_box_filters_with_repeated_edges(h, w, use, monkeypatch):
     assert np.array_equal(level_view(flat, shapes, 0), plate)
 
 
-def test_partial_pyramid_holds_the_same_coarse_levels():
-    plate = np.random.default_rng(0).random((37, 50, 3), dtype=np.float32)
-    shapes = level_shapes(37, 50)
-    full, part = build_pyramid(plate), build_pyramid(plate, first=2)
+@pytest.mark.parametrize("use", ["numpy", "opencv"])
+@pytest.mark.parametrize("h, w", [(37, 50), (40, 48), (64, 96)])
+@pytest.mark.parametrize("first", [2, 3])
+def test_partial_pyramid_holds_the_same_coarse_levels(h, w, first, use, monkeypatch):
+    """Level `first` comes straight from the plate when its sides are multiples of
+    2^first (the means of 2^first-wide blocks: equal to rounding), else by halving."""
+    if use == "opencv" and opencv.cv2() is None:
+        pytest.skip("OpenCV not installed (optional)")
+    monkeypatch.setenv("VR_GATHER", use)
+    plate = np.random.default_rng(h + w).random((h, w, 3), dtype=np.float32)
+    shapes = level_shapes(h, w)
+    full, part = build_pyramid(plate), build_pyramid(plate, first=first)
     assert part.shape[0] < full.shape[0] / 8
-    for level in range(2, len(shapes)):
-        assert np.array_equal(level_view(full, shapes, level), level_view(part, shapes, level, 2))
+    k = 1 << first
+    if h % k == 0 and w % k == 0:
+        blocks = plate.reshape(h // k, k, w // k, k, 3).mean((1, 3))
+        assert np.allclose(level_view(part, shapes, first, first), blocks, rtol=0, atol=1e-6)
+    for level in range(first, len(shapes)):
+        got, want = level_view(part, shapes, level, first), level_view(full, shapes, level)
+        if h % k or w % k:  # halved all the way: the same to the bit
+            assert np.array_equal(got, want)
+        else:
+            assert np.allclose(got, want, rtol=0, atol=1e-6)
 
 
 def test_small_maps_skip_the_fine_levels():
