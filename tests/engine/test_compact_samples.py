@@ -79,6 +79,27 @@ def test_compact_samples_are_10_bytes_a_row_and_grouped_by_level():
     assert np.unique(rows).size == px.size  # every texel has its own row
 
 
+@pytest.mark.parametrize("smooth", [False, True])
+def test_each_run_holds_the_texels_of_its_level(smooth):
+    """The runs' sizes (their texels counted per block by runs of equal keys) against the
+    levels worked out directly: noisy levels (a new key at every texel) and smooth ones."""
+    n = 300_000  # more than one block of the classification
+    rng = np.random.default_rng(11)
+    top = len(level_shapes(H, W)) - 1
+    lod = np.linspace(0, top, n, dtype=np.float32) if smooth else rng.random(n) * top
+    lod = lod.astype(np.float32)
+    lod[::7] = np.floor(lod[::7])  # exact levels: single samples
+    px = (rng.random(n) * W).astype(np.float32)
+    py = (rng.random(n) * H).astype(np.float32)
+    s = trilinear_samples(px, py, lod, top, (n, 1))
+    level = np.minimum(np.floor(lod), top - 1)
+    single = lod - level <= 2.0**-25
+    rows = np.sort(s.rank[..., 1].astype(np.int64).ravel() * ROW + s.rank[..., 0].ravel())
+    for r, (lv, one) in enumerate(zip(s.levels, s.singles, strict=True)):
+        held = np.searchsorted(rows, s.starts[r + 1]) - np.searchsorted(rows, s.starts[r])
+        assert held == np.count_nonzero((level == lv) & (single == one))
+
+
 def test_numpy_path_is_a_trilinear_lookup():
     px, py, lod = _samples(1500)
     got, flat, shapes, _ = _read(_plate(), px, py, lod, "numpy")
