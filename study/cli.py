@@ -3,7 +3,8 @@
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
-    python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--out DIR]
+    python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--split]
+        [--out DIR]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -107,6 +108,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --mirror-only: build the default method's maps with this sky prior gain "
         "(Params.sky_gain; default: the add-on's)",
     )
+    p.add_argument(
+        "--split",
+        action="store_true",
+        help="with --mirror-only: also where the default's error lies: on the pixels the sky "
+        "prior sets (found by a second render with the prior black) or on the rest",
+    )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
@@ -134,6 +141,7 @@ def main(argv=None) -> int:
                     mirror_only=args.mirror_only,
                     cache=args.cache,
                     sky_gain=args.sky_gain,
+                    split=args.split,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc

@@ -104,10 +104,11 @@ def default_cache() -> pathlib.Path:
     return pathlib.Path(tempfile.gettempdir()) / "vr_scenes3d_mirror_cache"
 
 
-def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
+def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False):
     """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
     (as `run_study`'s, with the mirror only, the default method and the plate mean).
-    ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is)."""
+    ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is);
+    ``split``: each scene's error split (`mirror.error_split`: one more render a scene)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -122,7 +123,7 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
     started = time.perf_counter()
     try:
         records, _, methods = mirror.run_scenes(
-            config.specs(), cache, work, config.width, config.samples, say, sky_gain
+            config.specs(), cache, work, config.width, config.samples, say, sky_gain, split
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -131,7 +132,8 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None):
         + (" --quick" if config.quick else "")
         + ("" if config.cases == "default" else f" --cases {config.cases}")
         + " --mirror-only"
-        + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}"),
+        + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}")
+        + (" --split" if split else ""),
         "sky_gain": sky_gain,
         "quick": config.quick,
         "mirror_only": True,
@@ -227,6 +229,7 @@ def run_command(
     mirror_only=False,
     cache=None,
     sky_gain=None,
+    split=False,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
@@ -235,9 +238,10 @@ def run_command(
     "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png.
     ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``, the sky
     prior's gain ``sky_gain`` if given): prints its table, and with ``out`` writes only
-    OUT/scenes3d_mirror(_quick).json."""
-    if not mirror_only and (cache is not None or sky_gain is not None):
-        raise ScenesInputError("--cache and --sky-gain go with --mirror-only")
+    OUT/scenes3d_mirror(_quick).json; with ``split`` also where the default's error lies
+    (`mirror.split_table`)."""
+    if not mirror_only and (cache is not None or sky_gain is not None or split):
+        raise ScenesInputError("--cache, --sky-gain and --split go with --mirror-only")
     if sky_gain is not None and not (math.isfinite(sky_gain) and 0.0 <= sky_gain <= 100.0):
         raise ScenesInputError(f"--sky-gain: 0..100, not {sky_gain}")
     if jobs != 1:
@@ -257,10 +261,13 @@ def run_command(
     if mirror_only:
         if cases not in ("default", "heldout"):
             raise ScenesInputError("--mirror-only runs the default or the held-out scenes only")
-        data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain)
+        data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain, split=split)
         from . import mirror  # bpy is importable: run_mirror said so
 
         print(mirror.table(data))
+        if split:
+            print()
+            print(mirror.split_table(data))
         print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
         if out:
             target = pathlib.Path(out)

@@ -46,9 +46,12 @@ def cache_key(spec: Scene3D, width: int, samples: int) -> str:
     return h.hexdigest()[:16]
 
 
-def run_scene(spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width, samples, log):
+def run_scene(
+    spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width, samples, log, split=False
+):
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
-    method and the plate mean."""
+    method and the plate mean. ``split``: also the default with a black sky prior (one more
+    Generate and render), and the record's "split" (`error_split`)."""
     started = time.perf_counter()
     run.new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -100,12 +103,22 @@ def run_scene(spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width,
     method = run.render(scene, work / f"{spec.name} {label}.exr", border)
     renders += 1
     addon.generate.remove_all()
+    dark = None
+    if split:  # the same maps with the sky prior black: the pixels it sets are those that change
+        with sky_gain(addon, 0.0):
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            dark_report = addon.generate.generate(scene, depsgraph, [subject])
+        if not dark_report.done:
+            raise RuntimeError(f"{spec.name}: Generate ({label}, sky gain 0) made nothing")
+        dark = run.render(scene, work / f"{spec.name} {label} sky 0.exr", border)
+        renders += 1
+        addon.generate.remove_all()
 
     mask = mean[..., 3] > 0.5
-    results, crops = {}, {}
+    results, crops, composites = {}, {}, {}
     y0, y1, x0, x1 = crop
     for name, rgba in ((label, method), (run.MEAN, mean)):
-        composite = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+        composite = composites[name] = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
         results[name] = run.score(composite, truth, mask, crop)
         crops[name] = run.to_display(composite[y0:y1, x0:x1])
     results["(plate itself)"] = run.score(plate, truth, mask, crop)
@@ -122,12 +135,37 @@ def run_scene(spec: Scene3D, addon: run.Addon, cache: pathlib.Path, work, width,
         "seconds": time.perf_counter() - started,
         "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
     }
+    if dark is not None:
+        record["split"] = error_split(
+            composites, dark[..., :3] + (1.0 - dark[..., 3:4]) * plate, truth, mask, label
+        )
     log(
         f"{spec.name}: {mask.sum()} px, mirror PSNR {label} {results[label]['psnr']:.2f}, "
         f"plate mean {results[run.MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, {renders} "
         f"renders{', cached' if hit else ''})"
     )
     return record, crops
+
+
+SPLIT_CHANGE = 0.02  # display units: a pixel the sky prior sets changes more than this with it off
+
+
+def error_split(composites: dict, dark, truth, mask, label: str) -> dict:
+    """Where the default method's error lies: the subject's pixels the sky prior sets (they
+    change by more than SPLIT_CHANGE in any channel when the prior is black: `dark`, the
+    default's composite with Params.sky_gain = 0) and the others (the ground, the plate's
+    extension at the horizon, the seen region). Per method in ``composites`` (linear
+    composites over the plate), the mean squared display error over the subject's pixels
+    and channels, split in those two parts (they add up to the MSE its PSNR is taken from).
+    Returns {"sky_share": share of the subject's pixels, name: {"sky": .., "rest": ..}}."""
+    shown = {name: run.to_display(image)[mask] for name, image in composites.items()}
+    target = run.to_display(truth)[mask]
+    sky = np.abs(shown[label] - run.to_display(dark)[mask]).max(axis=1) > SPLIT_CHANGE
+    out = {"sky_share": float(sky.mean())}
+    for name, values in shown.items():
+        error = ((values - target) ** 2).mean(axis=1) / max(int(mask.sum()), 1)
+        out[name] = {"sky": float(error[sky].sum()), "rest": float(error[~sky].sum())}
+    return out
 
 
 @contextlib.contextmanager
@@ -150,9 +188,10 @@ def sky_gain(addon: run.Addon, gain):
         pipeline.map_params = original
 
 
-def run_scenes(specs, cache, work, width, samples, log, gain=None):
+def run_scenes(specs, cache, work, width, samples, log, gain=None, split=False):
     """Every scene's mirror in turn; returns (records, crops, [the default method's label]).
-    ``gain``: the sky prior's gain for this run (None: the add-on's default)."""
+    ``gain``: the sky prior's gain for this run (None: the add-on's default); ``split``: each
+    record's error split (`error_split`)."""
     addon = run.Addon()
     records, crops = [], {}
     try:
@@ -160,7 +199,14 @@ def run_scenes(specs, cache, work, width, samples, log, gain=None):
         with sky_gain(addon, gain):
             for spec in specs:
                 record, scene_crops = run_scene(
-                    spec, addon, pathlib.Path(cache), pathlib.Path(work), width, samples, log
+                    spec,
+                    addon,
+                    pathlib.Path(cache),
+                    pathlib.Path(work),
+                    width,
+                    samples,
+                    log,
+                    split,
                 )
                 records.append(record)
                 crops[spec.name] = scene_crops
@@ -203,4 +249,44 @@ def table(data) -> str:
         f"{sum(d > 0 for d in ds)}/{n}; mean difference {np.mean(dp):+.2f} dB, "
         f"{np.mean(ds):+.3f} SSIM"
     )
+    return "\n".join(rows)
+
+
+def split_table(data) -> str:
+    """Where the default method's mirror error lies (`error_split`): per scene, the share of
+    the subject's pixels the sky prior sets and the mean squared display error on them and on
+    the rest, the default's and the plate mean's; then what the mean PSNR difference over the
+    plate mean would be if one part of the default's error were smaller (what a better model
+    of that part could gain at most, the other part as it is)."""
+    label = data["addon_methods"][0]
+    rows = [
+        f"| scene | sky share | {label}: sky / rest | plate mean: sky / rest |",
+        "|---|---|---|---|",
+    ]
+    parts = []
+    for record in data["scenes"]:
+        split = record["split"]
+        ours, mean = split[label], split[run.MEAN]
+        parts.append((ours["sky"], ours["rest"], mean["sky"], mean["rest"]))
+        rows.append(
+            f"| {record['scene']['name']} | {split['sky_share']:.2f} | {ours['sky']:.4f} / "
+            f"{ours['rest']:.4f} | {mean['sky']:.4f} / {mean['rest']:.4f} |"
+        )
+    p = np.array(parts)
+    share = np.mean([r["split"]["sky_share"] for r in data["scenes"]])
+    rows.append(
+        f"| mean | {share:.2f} | {p[:, 0].mean():.4f} / {p[:, 1].mean():.4f} | "
+        f"{p[:, 2].mean():.4f} / {p[:, 3].mean():.4f} |"
+    )
+    base = -10 * np.log10(p[:, 2] + p[:, 3])  # the plate mean's PSNR
+    rows.append("")
+    for text, sky, rest in (
+        ("as rendered", 1.0, 1.0),
+        ("the rest's error halved", 1.0, 0.5),
+        ("no error on the rest", 1.0, 0.0),
+        ("the sky's error 10 % smaller", 0.9, 1.0),
+    ):
+        d = -10 * np.log10(sky * p[:, 0] + rest * p[:, 1]) - base
+        ahead = int((d > 0).sum())
+        rows.append(f"{text}: {d.mean():+.2f} dB over the plate mean, ahead in {ahead}/{len(d)}")
     return "\n".join(rows)

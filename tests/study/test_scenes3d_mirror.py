@@ -1,8 +1,8 @@
 """The fast mirror loop (`python -m study scenes --mirror-only`) on the quick subset: a first run
 renders the plate, the truth, the plate mean and the default method; a second run finds the
 first three in the cache and renders only the method, with the same scores; `--sky-gain`
-changes the method's maps and nothing else. About 40 s on two cores (bpy 4.5); skipped only
-when bpy cannot be imported."""
+changes the method's maps and nothing else; `--split` says where the method's error lies.
+About 50 s on two cores (bpy 4.5); skipped only when bpy cannot be imported."""
 
 import math
 import pathlib
@@ -29,11 +29,14 @@ def runs(tmp_path_factory):
     dark, _ = run_command(
         quick=True, mirror_only=True, cache=cache, sky_gain=0.0, log=lambda _: None
     )
-    return first, again, dark, out
+    split, _ = run_command(
+        quick=True, mirror_only=True, cache=cache, split=True, log=lambda _: None
+    )
+    return first, again, dark, out, split
 
 
 def test_the_first_run_renders_four_and_the_second_only_the_method(runs):
-    first, again, _, out = runs
+    first, again, _, out, _ = runs
     assert len(first["scenes"]) == len(QUICK.specs())
     assert [r["renders"] for r in first["scenes"]] == [4] * len(QUICK.specs())
     assert [r["renders"] for r in again["scenes"]] == [1] * len(QUICK.specs())
@@ -45,7 +48,7 @@ def test_the_first_run_renders_four_and_the_second_only_the_method(runs):
 
 
 def test_cached_renders_score_as_the_fresh_ones(runs):
-    first, again, _, _ = runs
+    first, again, _, _, _ = runs
     for a, b in zip(first["scenes"], again["scenes"]):
         ra, rb = a["results"]["mirror"], b["results"]["mirror"]
         assert ra["Plate mean"] == rb["Plate mean"]
@@ -57,7 +60,7 @@ def test_cached_renders_score_as_the_fresh_ones(runs):
 
 
 def test_a_black_sky_prior_changes_only_the_method(runs):
-    first, _, dark, _ = runs
+    first, _, dark, _, _ = runs
     assert dark["sky_gain"] == 0.0 and "--sky-gain 0" in dark["command"]
     changed = 0
     for a, b in zip(first["scenes"], dark["scenes"]):
@@ -67,8 +70,28 @@ def test_a_black_sky_prior_changes_only_the_method(runs):
     assert changed >= 1  # the quick scenes' plates do not show all their sky
 
 
+def test_the_split_adds_up_to_the_scores(runs):
+    """`--split`: one more render a scene (the sky prior black); the error on the pixels the
+    prior sets and on the rest add up to the MSE of the PSNR the loop reports."""
+    first, _, _, _, split = runs
+    assert "--split" in split["command"]
+    assert [r["renders"] for r in split["scenes"]] == [2] * len(QUICK.specs())
+    for a, b in zip(first["scenes"], split["scenes"]):
+        parts = b["split"]
+        assert 0.0 < parts["sky_share"] < 1.0  # the quick scenes' plates do not show all their sky
+        for name in (LABEL, "Plate mean"):
+            mse = parts[name]["sky"] + parts[name]["rest"]
+            psnr = b["results"]["mirror"][name]["psnr"]
+            assert abs(-10 * math.log10(mse) - psnr) < 1e-3
+            assert parts[name]["sky"] > 0 and parts[name]["rest"] > 0
+        assert (
+            abs(a["results"]["mirror"][LABEL]["psnr"] - b["results"]["mirror"][LABEL]["psnr"])
+            < 0.05
+        )
+
+
 def test_cache_and_sky_gain_need_mirror_only_in_one_line():
-    for extra in (["--cache", "/tmp/x"], ["--mirror-only", "--sky-gain", "-1"]):
+    for extra in (["--cache", "/tmp/x"], ["--split"], ["--mirror-only", "--sky-gain", "-1"]):
         r = subprocess.run(
             [sys.executable, "-m", "study", "scenes", "--quick", *extra],
             cwd=ROOT,
