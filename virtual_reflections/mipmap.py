@@ -110,7 +110,8 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, 
     shapes = level_shapes(h, w, levels)
     offsets = level_offsets(shapes, first)
     flat = np.empty((int(offsets[-1]), 3), dtype=np.float32) if out is None else out
-    skip = first if first >= 2 and first < len(shapes) and _divides(1 << first, h, w) else 0
+    direct = 2 <= first < len(shapes) and h % (1 << first) == 0 and w % (1 << first) == 0
+    skip = first if direct else 0
     previous = plate
     for i, (lh, lw) in enumerate(shapes):
         if 0 < i < skip:
@@ -132,10 +133,6 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, 
         if stored is not None:
             _fill_border(stored)
     return flat
-
-
-def _divides(k: int, *sizes: int) -> bool:
-    return all(size % k == 0 for size in sizes)
 
 
 def _blocks(src: np.ndarray, dst: np.ndarray, k: int) -> None:

@@ -112,11 +112,12 @@ def plate_positions(directions: np.ndarray, seg: Segmentation, triangles: int = 
         # `inner`, split at the centre lines) and its apex on the image border, at the same
         # position along the edge (with n triangles: the sub-triangle's middle): the position
         # lerps from base to apex by rad = 1 - max(|h|, |w|).
-        idx = _where(front) if front.any() else None
-        if idx is not None:
+        if front.any():
+            idx = _where(front)
             h, w = cube[0][idx], cube[1][idx]  # on this face m = |z|
-            big = np.maximum(np.abs(h), np.abs(w))
-            horiz = np.abs(h) >= big
+            abs_h = np.abs(h)
+            big = np.maximum(abs_h, np.abs(w))
+            horiz = abs_h >= big
             rad = 1 - big
             centre = big == 0  # straight behind the camera: as F'_R's apex line
             big[centre] = 1
