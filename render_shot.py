@@ -187,7 +187,7 @@ def main(argv=None):
                 _error(addon.dependencies.needs(module, "render_shot.py"))
                 return EXIT_BAD_INPUT
         options = batch_options(addon, args)
-        with _batch(addon).stop_on_signals():
+        with _part(addon, "batch_signals").stop_on_signals():
             return run(bpy, addon, own, options)
     except (ValueError, OSError, RuntimeError) as exc:
         _error(exc)
@@ -195,7 +195,7 @@ def main(argv=None):
     except MemoryError as exc:
         _error(str(exc) or "out of memory (a smaller --scale or plate, or a bigger machine)")
         return EXIT_FAILED
-    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, batch.Interrupted)
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, batch_signals.Interrupted)
         code = EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
         code = getattr(exc, "exit_code", code)
         word = "terminated" if code == EXIT_TERMINATED else "interrupted"
@@ -211,19 +211,17 @@ def main(argv=None):
             signal.signal(signal.SIGTERM, previous)
 
 
-def _batch(addon):
+def _part(addon, name):
+    """The add-on's module operators.<name> (the batch's modules)."""
     from importlib import import_module
 
-    return import_module(addon.__name__ + ".operators.batch")
+    return import_module(f"{addon.__name__}.operators.{name}")
 
 
 def batch_options(addon, args):
     """The parsed command line as the add-on's BatchOptions; ValueError (one line) if an
     option is bad, before the shot is opened."""
-    from importlib import import_module
-
-    module = import_module(addon.__name__ + ".operators.batch_options")
-    return module.BatchOptions.from_namespace(args)
+    return _part(addon, "batch_options").BatchOptions.from_namespace(args)
 
 
 def run(bpy, addon, own, options):
@@ -236,7 +234,7 @@ def run(bpy, addon, own, options):
     if registered:
         addon.register()
     try:
-        return _batch(addon).render_shot(options, started)
+        return _part(addon, "batch").render_shot(options, started)
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()

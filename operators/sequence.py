@@ -3,7 +3,8 @@
 Update Every Frame (``scene.virtual_reflections.sequence``): on every frame change -- viewport
 playback, scrubbing, ``frame_set``, and each frame of a render -- the maps of the scene's
 objects that have a reflection attached are rebuilt from the plate's current frame and the
-objects' bounds at that frame. The batch entry (batch.py) calls the same `update` per frame.
+objects' bounds at that frame. The batch's frame ranges (batch_frames.py) call the same
+`update` per frame.
 
 Frames and threads, verified in Blender 4.5 and 5.2 (tests/blender/test_sequence.py; an
 interactive render in Blender's window: tests/e2e/test_sequence_blender.py):

@@ -100,4 +100,4 @@ def mean_rgb(image):
 
 def read(path):
     """(H, W, 4) float32 pixels of an image file, top row first (the batch entry's reader)."""
-    return addon_part("operators.batch").read_rgba(str(path))
+    return addon_part("virtual_reflections.imagefiles").read_rgba(str(path))

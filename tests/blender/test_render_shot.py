@@ -36,7 +36,7 @@ def run(*args):
 
 
 def read(path):
-    return addon_part("operators.batch").read_rgba(str(path))
+    return addon_part("virtual_reflections.imagefiles").read_rgba(str(path))
 
 
 def test_render_shot_writes_render_and_composite(shot, tmp_path):
@@ -78,7 +78,7 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
     """--method picks the camera-view or the paper's method; without it the shot's own stays."""
     import importlib
 
-    batch = importlib.import_module(f"{addon.__name__}.operators.batch")
+    batch_render = importlib.import_module(f"{addon.__name__}.operators.batch_render")
     render_shot = importlib.import_module("render_shot")
     settings = bpy.context.scene.virtual_reflections
     base = ["--plate", str(PLATE), "--out", str(tmp_path)]
@@ -87,13 +87,14 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
         return render_shot.batch_options(addon, render_shot.parse([*base, *argv]))
 
     for given, expected in (("ground", "GROUND"), ("camera", "CAMERA"), ("paper", "PAPER")):
-        batch._configure(bpy.context.scene, options("--method", given))
+        batch_render.configure(bpy.context.scene, options("--method", given))
         assert settings.method == expected
     floor = bpy.data.objects.new("Floor", None)
     bpy.context.scene.collection.objects.link(floor)
-    batch._configure(bpy.context.scene, options("--method", "paper", "--ground-object", "Floor"))
+    paper_on_floor = options("--method", "paper", "--ground-object", "Floor")
+    batch_render.configure(bpy.context.scene, paper_on_floor)
     assert settings.ground_object == floor
-    batch._configure(bpy.context.scene, options())
+    batch_render.configure(bpy.context.scene, options())
     assert settings.method == "PAPER"  # kept, not reset to the default (Camera View)
     with pytest.raises(SystemExit) as bad:
         render_shot.parse([*base, "--method", "nope"])
