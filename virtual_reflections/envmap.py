@@ -13,9 +13,9 @@ import threading
 
 import numpy as np
 
-from .camera_view import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .colour import clean_plate
 from .extension import apply as apply_extension
+from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .opencv import backend
 from .parallel import CHUNK, for_blocks

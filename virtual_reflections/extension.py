@@ -3,7 +3,7 @@
 Within `Params.extend_fade` degrees of the plate's view a texel is the plate's edge, blurred
 and extended (one trilinear sample of the mip pyramid), faded into the fill by a weight that
 falls from 1 at the view's edge to 0 at the reach. The fill is written over every texel
-before (camera_view.fill_values on a lat-long, the fill's taps on a cube), so the extension
+before (fill.fill_values on a lat-long, the fill's taps on a cube), so the extension
 keeps only its trilinear samples (trilinear.py: 14 bytes a texel, read by NumPy or OpenCV)
 and its weight; per frame, out = fill + weight (extension - fill). Without a fill
 (extend_fade None) there is no weight: the extension alone.

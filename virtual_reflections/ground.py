@@ -40,7 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera_view import directions_at, mean_taps, supersample_levels
+from .layouts import directions_at
+from .seen_texels import mean_taps, supersample_levels
 
 MARGIN = 0.25  # plate heights past the border over which the ground fades into the fill
 SAMPLES = 2  # n: n x n bilinear samples over a ground texel's footprint (16 taps)

@@ -116,3 +116,23 @@ def texel_directions(layout: str, size: int, offset=(0.0, 0.0), dtype=np.float64
         for c, (i, s) in enumerate(((ix, sx), (iy, sy), (iz, sz))):
             out[f, :, :, c] = s * ab[i] if i else s
     return out.reshape(height, width, 3)
+
+
+def directions_at(layout: str, size: int, ids: np.ndarray, dx: float, dy: float):
+    """Directions (n, 3) through the texels `ids` (flat indices) shifted by (dx, dy) texels."""
+    if layout == "latlong":
+        # The trigonometry per row and per column of the map (as latlong_directions takes
+        # it, so the values are the same), each texel a product of its row's and column's.
+        row, col = np.divmod(ids, size)
+        h = size // 2
+        lat = -np.pi * ((np.arange(h) + 0.5 + dy) / h - 0.5)
+        lon = -2.0 * np.pi * ((np.arange(size) + 0.5 + dx) / size - 0.5)
+        cos_lat = np.cos(lat)[row]
+        out = np.empty((len(ids), 3), np.float64)
+        np.multiply(np.sin(lon)[col], cos_lat, out=out[:, 0])
+        out[:, 1] = np.sin(lat)[row]
+        np.multiply(np.cos(lon)[col], cos_lat, out=out[:, 2])
+        return out
+    row, col = np.divmod(ids, size)
+    face, frow = np.divmod(row, size)
+    return cube_directions(face, col + dx, frow + dy, size)

@@ -48,3 +48,9 @@ def for_blocks(fn, rows: int, min_rows: int = MIN_ROWS, max_rows: int | None = N
     futures = [_pool.submit(fn, a, b) for a, b in zip(bounds, bounds[1:])]
     for f in futures:
         f.result()
+
+
+def chunks(count: int, size: int = 32768):
+    """(start, stop) of consecutive blocks of `size` rows: per-texel work on large maps in
+    blocks keeps its temporaries small (cached, not fresh memory)."""
+    return ((a, min(a + size, count)) for a in range(0, count, size))

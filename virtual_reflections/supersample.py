@@ -1,12 +1,12 @@
 """Supersampled texels, stored compactly, read with NumPy.
 
 The camera view's seen texels are each the mean of K = n x n bilinear samples on one mip
-level (camera_view.supersample_taps). Instead of 4 K pyramid rows and weights (32 K bytes:
+level (seen_texels.supersample_taps). Instead of 4 K pyramid rows and weights (32 K bytes:
 512 for n = 4), a sample keeps its top-left row of the flat pyramid (int32) and its position
 between that pixel and the next in x and in y (uint16 steps of 1/65535): 8 K bytes. Texels
 are grouped by level (runs), so within a run the level's row length is a number: per frame
 a block's 4 K rows are the bases plus (0, 1, row, row + 1), its weights the products of the
-fractions (the arithmetic of camera_view.mean_taps; positions beyond the level's edge read
+fractions (the arithmetic of seen_texels.mean_taps; positions beyond the level's edge read
 its edge), read with one `take` and a weighted sum.
 
 Samples on level 0 read the plate itself (its rows unbordered, `gather`'s `plate`), not a

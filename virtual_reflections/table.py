@@ -16,11 +16,11 @@ The camera-view method (camera_view.py) has three groups of texels, each with it
 number of taps: those the plate sees (4 x 4 bilinear samples over the footprint, 64 taps),
 those near the plate's view (one trilinear sample of the blurred edge extension, faded into
 the fill: extension.py) and the rest (the fill only: the profile interpolated by elevation,
-and with `fill_sides` the left and the right profile weighted by `camera_view.side_weight`).
+and with `fill_sides` the left and the right profile weighted by `fill.side_weight`).
 The fill profiles are computed per frame and stored after the pyramid, so they are one more
 block of rows the same gathers read. The fill is written over every texel first (on a
 lat-long not as taps: every texel keeps its elevation as one uint16 step, one per row without
-a world horizon, read by `camera_view.fill_values`), the other groups over it.
+a world horizon, read by `fill.fill_values`), the other groups over it.
 
 Building works in blocks of texels (or rows) over the cores, so its temporaries stay small
 whatever the map's size; on a lat-long the camera-view geometry is taken per row and per
@@ -35,10 +35,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import camera_view, ground
+from . import camera_view, ground, seen_texels
 from .cache import bounded
 from .extension import Extension, extension
-from .layouts import latlong_directions, map_shape, texel_directions
+from .fill import (
+    fill_bins_latlong,
+    fill_geometry,
+    fill_level,
+    fill_taps,
+    side_weight,
+    sky_share,
+)
+from .layouts import directions_at, latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import CHUNK, for_blocks
 from .params import Params
@@ -72,7 +80,7 @@ class LookupTable:
     fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
     # A lat-long's fill for every texel, before the groups (written over it): (steps (T,) or,
     # without a world horizon, (H,) per row, uint16; side (3 W,) float32 or None), see
-    # camera_view.fill_values.
+    # fill.fill_values.
     fill_texels: tuple | None = None
     # The paper's method: every texel a trilinear sample, stored compactly (trilinear.py;
     # index and weight are None), written before the groups.
@@ -87,7 +95,7 @@ class LookupTable:
 
 @dataclass(frozen=True, eq=False)
 class Fill:
-    """Where the camera-view method's fill profile comes from (camera_view.fill_geometry) and
+    """Where the camera-view method's fill profile comes from (fill_geometry) and
     goes: computed on pyramid level `level`, written to rows `base` .. `base` + FILL_BINS - 1."""
 
     level: int
@@ -98,7 +106,7 @@ class Fill:
     bins: np.ndarray
     window: np.ndarray
     counts: np.ndarray
-    sky: np.ndarray | None = None  # camera_view.sky_share, with a world horizon (Params.up)
+    sky: np.ndarray | None = None  # sky_share, with a world horizon (Params.up)
     sky_gain: float = 1.0
 
 
@@ -255,14 +263,14 @@ def _build_camera_view(
 
     if latlong:
         seen = ids(np.flatnonzero(inside.reshape(shape)[block]))
-        centres = camera_view.directions_at(layout, size, seen, 0.0, 0.0)
+        centres = directions_at(layout, size, seen, 0.0, 0.0)
     else:
         directions = directions.reshape(-1, 3)
         seen, centres = None, directions
-    seen, rect = camera_view.seen_footprints(
+    seen, rect = seen_texels.seen_footprints(
         layout, size, centres, width, height, intrinsics, ids=seen
     )
-    seen_level = camera_view.supersample_levels(rect, shapes)
+    seen_level = seen_texels.supersample_levels(rect, shapes)
     unseen = np.ones(count, bool)
     unseen[seen] = False
     unseen, near_angle = unseen.reshape(shape)[block], angle.reshape(shape)[block]
@@ -298,7 +306,7 @@ def _build_camera_view(
         int(near_lod.max()) + 1 if near.size else 0,
         int(seen_level.max()) if seen.size else 0,
     ]
-    level_fill = camera_view.fill_level(shapes) if filled else None
+    level_fill = fill_level(shapes) if filled else None
     if filled:
         used.append(level_fill)
         deepest.append(level_fill)
@@ -308,7 +316,7 @@ def _build_camera_view(
     fill = None
     if filled:
         sides = 2 if params.fill_sides else 1
-        bins, window, counts = camera_view.fill_geometry(
+        bins, window, counts = fill_geometry(
             shapes[level_fill],
             level_fill,
             intrinsics,
@@ -327,16 +335,16 @@ def _build_camera_view(
             bins,
             window,
             counts,
-            camera_view.sky_share(window, counts) if params.up is not None else None,
+            sky_share(window, counts) if params.up is not None else None,
             params.sky_gain,
         )
         # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
         toward = (
-            camera_view.directions_at(layout, size, np.arange(size), 0, 0)
+            directions_at(layout, size, np.arange(size), 0, 0)
             if latlong
             else directions
         )
-        side = camera_view.side_weight(toward, intrinsics, width) if sides == 2 else None
+        side = side_weight(toward, intrinsics, width) if sides == 2 else None
         _frozen(bins, window, counts)
 
     # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
@@ -349,23 +357,23 @@ def _build_camera_view(
     if filled:
         if latlong:  # compact: 2 bytes a texel, read per frame by fill_values
             if params.up is None:  # a texel's elevation is its row's: one step per row
-                fill_steps = camera_view.fill_bins_latlong(size)
+                fill_steps = fill_bins_latlong(size)
             else:
                 fill_steps = np.empty(count, np.uint16)
 
                 def fill_rows(a, b):
                     texels = slice(a * size, b * size)
-                    camera_view.fill_bins_latlong(
+                    fill_bins_latlong(
                         size, params.up, slice(a, b), out=fill_steps[texels]
                     )
 
                 for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
             fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
         else:  # the fill's taps for every texel, in order, before the others
-            main = (None, *camera_view.fill_taps(directions, fill.base, side, params.up))
+            main = (None, *fill_taps(directions, fill.base, side, params.up))
     seen_samples = None
     if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
-        positions = camera_view.supersample_positions(layout, size, seen, intrinsics)
+        positions = seen_texels.supersample_positions(layout, size, seen, intrinsics)
         seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
     _frozen(*(a for a in main if a is not None), *(fill_texels or ()))
     return LookupTable(
@@ -505,8 +513,8 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
                 toward = directions[ids[part]]
             side = None
             if base.fill.sides == 2:
-                side = camera_view.side_weight(toward, intrinsics, width)
-            fill_index, fill_weight = camera_view.fill_taps(toward, base.fill.base, side, params.up)
+                side = side_weight(toward, intrinsics, width)
+            fill_index, fill_weight = fill_taps(toward, base.fill.base, side, params.up)
             groups.append(
                 (
                     ids[part],

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from virtual_reflections import Params, environment_map
+from virtual_reflections import Params, environment_map, fill, seen_texels
 from virtual_reflections import camera_view as cv
 from virtual_reflections.camera_view import plate_positions
 
@@ -264,7 +264,7 @@ def test_the_lat_long_clamp_per_row_and_column_is_the_general_one(shifted):
     assert np.abs(position - position2).max() < 1e-2
     off = np.abs(angle - angle2) > 1e-4
     assert off.mean() < 1e-3 and np.abs(angle - angle2)[off].max(initial=0.0) <= cv.ANGLE_EPS + 1e-4
-    seen, _ = cv.seen_footprints("latlong", size, d, width, height, intrinsics)
+    seen, _ = seen_texels.seen_footprints("latlong", size, d, width, height, intrinsics)
     np.testing.assert_array_equal(seen, np.flatnonzero(inside))
 
 
@@ -277,17 +277,17 @@ def test_the_compact_fill_reads_the_profile_as_its_taps_do(up):
     size, width = 128, 640
     intrinsics = cv.intrinsics_from_hfov(width, 360, 60.0)
     rng = np.random.default_rng(5)
-    profile = np.cumsum(rng.random((2, cv.FILL_BINS, 3), dtype=np.float32) * 0.05, axis=1)
+    profile = np.cumsum(rng.random((2, fill.FILL_BINS, 3), dtype=np.float32) * 0.05, axis=1)
     d = texel_directions("latlong", size, dtype=np.float32).reshape(-1, 3)
-    side = cv.side_weight(d[:size], intrinsics, width)
-    index, weight = cv.fill_taps(d, 0, np.tile(side, size // 2), up)
+    side = fill.side_weight(d[:size], intrinsics, width)
+    index, weight = fill.fill_taps(d, 0, np.tile(side, size // 2), up)
     expected = np.einsum("tkc,tk->tc", profile.reshape(-1, 3)[index], weight)
-    steps = cv.fill_bins_latlong(size, up)
+    steps = fill.fill_bins_latlong(size, up)
     assert steps.size == (size // 2 if up is None else d.shape[0])
     out = np.empty_like(expected)
-    cv.fill_values(steps, np.repeat(side, 3), cv.fill_lookup(profile), out)
+    fill.fill_values(steps, np.repeat(side, 3), fill.fill_lookup(profile), out)
     step = np.abs(np.diff(profile, axis=1)).max()
-    assert np.abs(out - expected).max() <= step / cv.FILL_STEPS + 1e-5
+    assert np.abs(out - expected).max() <= step / fill.FILL_STEPS + 1e-5
 
 
 @pytest.mark.parametrize(

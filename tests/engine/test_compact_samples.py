@@ -133,9 +133,9 @@ def test_vr_gather_numpy_forces_the_numpy_path(monkeypatch):
 
 
 def test_compact_supersamples_read_what_their_taps_read():
-    """supersample.py: the same means as camera_view.mean_taps' rows and weights (positions
+    """supersample.py: the same means as seen_texels.mean_taps' rows and weights (positions
     beyond a level's edge included), at 8 bytes a sample instead of 32."""
-    from virtual_reflections.camera_view import mean_taps
+    from virtual_reflections.seen_texels import mean_taps
     from virtual_reflections.supersample import gather as gather_supersample
     from virtual_reflections.supersample import supersamples
 
