@@ -13,7 +13,7 @@ import bpy
 from bpy.props import EnumProperty, IntProperty
 
 from . import dependencies
-from .operators import maps, shading
+from .operators import maps, shading, world
 from .operators.choices import (
     COMBINE_ITEMS,
     DEFAULTS,
@@ -97,7 +97,7 @@ def get(context=None):
 def _untouched(scene) -> bool:
     """True when the add-on has done nothing in ``scene`` yet (no map, no report)."""
     settings = scene.virtual_reflections
-    if settings.last_report or scene.get(shading.WORLD_RECORD) is not None:
+    if settings.last_report or scene.get(world.WORLD_RECORD) is not None:
         return False
     return not any(shading.is_attached(obj) for obj in scene.objects)
 

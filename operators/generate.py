@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import bpy
 
 from ..virtual_reflections.composite import union_box
-from . import maps, pipeline, plate, shading
+from . import maps, pipeline, plate, shading, world
 from .choices import map_width
 
 
@@ -370,8 +370,8 @@ def remove_all() -> int:
             shading.detach(obj)
             restored += 1
     for scene in bpy.data.scenes:
-        if scene.get(shading.WORLD_RECORD) is not None:
-            shading.detach_world(scene)
+        if scene.get(world.WORLD_RECORD) is not None:
+            world.detach_world(scene)
     maps.remove_maps()
     plate.clear_cache()
     return restored
@@ -382,6 +382,6 @@ def anything_attached():
     add-on's left behind by a deleted object."""
     return (
         any(shading.is_attached(o) for o in bpy.data.objects)
-        or any(s.get(shading.WORLD_RECORD) is not None for s in bpy.data.scenes)
+        or any(s.get(world.WORLD_RECORD) is not None for s in bpy.data.scenes)
         or bool(maps.orphans({shading.map_of(o) for o in bpy.data.objects}))
     )

@@ -133,3 +133,11 @@ def remove_created(kinds) -> int:
     for image in ours:
         bpy.data.images.remove(image)
     return len(ours)
+
+
+def check_local(id_data, what):
+    """ValueError (one line) when ``id_data`` is linked from a library or not editable: the
+    add-on edits only local data."""
+    if id_data.library is not None or not id_data.is_editable:
+        library = id_data.library.filepath if id_data.library is not None else "a library"
+        raise ValueError(f"{what} is linked from {library} and read-only; make it local first")

@@ -27,6 +27,16 @@ def shading(addon):
     return importlib.import_module(f"{addon.__name__}.operators.shading")
 
 
+@pytest.fixture
+def world(addon):
+    return importlib.import_module(f"{addon.__name__}.operators.world")
+
+
+@pytest.fixture
+def reflection_nodes(addon):
+    return importlib.import_module(f"{addon.__name__}.operators.reflection_nodes")
+
+
 # --- scene helpers ----------------------------------------------------------------------------
 
 
@@ -172,13 +182,13 @@ def assert_left_red_right_blue(scene, sphere, pixels, size, radius=None):
 # --- the lookup -------------------------------------------------------------------------------
 
 
-def test_lookup_group_matches_the_lat_long_convention(shading, clean_file, tmp_path):
+def test_lookup_group_matches_the_lat_long_convention(reflection_nodes, clean_file, tmp_path):
     """Render the group's UV output for known camera-frame directions (tiny emissive planes
     parented to a tilted, rolled camera) and compare with docs/conventions.md's formula."""
     scene = clean_file.scene
     cam = add_camera(scene, location=(1.0, -3.0, 2.0), look_at=(0.2, 0.5, -0.3), roll=0.4)
-    group = shading.ensure_lookup_group()
-    assert shading.ensure_lookup_group() == group  # reused
+    group = reflection_nodes.ensure_lookup_group()
+    assert reflection_nodes.ensure_lookup_group() == group  # reused
     # Product camera frame -> Blender camera-local: rotate 180 degrees about Y.
     to_local = Matrix.Rotation(math.pi, 3, "Y")
     directions = {
@@ -228,7 +238,7 @@ def test_lookup_group_matches_the_lat_long_convention(shading, clean_file, tmp_p
         assert (u, v) == pytest.approx((expected_u, expected_v), abs=1e-3), name
 
 
-def test_equirect_output_agrees_with_uv(shading, clean_file, tmp_path):
+def test_equirect_output_agrees_with_uv(reflection_nodes, clean_file, tmp_path):
     """The Environment Texture path (used for sampling) lands on the same map pixel as UV: a
     map storing each pixel centre's (u, v) read back through 'Equirect' returns the UV."""
     scene = clean_file.scene
@@ -245,7 +255,7 @@ def test_equirect_output_agrees_with_uv(shading, clean_file, tmp_path):
     tree.nodes.clear()
     geometry = tree.nodes.new("ShaderNodeNewGeometry")
     lookup = tree.nodes.new("ShaderNodeGroup")
-    lookup.node_tree = shading.ensure_lookup_group()
+    lookup.node_tree = reflection_nodes.ensure_lookup_group()
     tree.links.new(geometry.outputs["Normal"], lookup.inputs["Vector"])
     env = tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = image
@@ -431,7 +441,7 @@ def user_scene(scene):
 
 
 @pytest.mark.parametrize("mode", ["REPLACE", "MODULATE", "MIX", "WORLD"])
-def test_attach_renders_and_detach_restores_exactly(shading, clean_file, tmp_path, mode):
+def test_attach_renders_and_detach_restores_exactly(shading, world, clean_file, tmp_path, mode):
     scene = clean_file.scene
     sphere = user_scene(scene)
     image = halves_map("map", RED, BLUE)
@@ -443,7 +453,7 @@ def test_attach_renders_and_detach_restores_exactly(shading, clean_file, tmp_pat
     for name, signature in before["materials"].items():
         assert during["materials"][name] == signature, f"{name} was modified"
     if mode == "WORLD":
-        assert scene.world.name == shading.WORLD_NAME
+        assert scene.world.name == world.WORLD_NAME
         assert during["objects"] == before["objects"]
     else:
         assert all(link == "OBJECT" for link, _, _ in during["objects"][sphere.name])
@@ -550,7 +560,7 @@ def test_shared_mesh_only_the_target_changes(shading, clean_file):
     assert vr_leftovers() == []
 
 
-def test_world_follows_the_camera_and_restores(shading, clean_file, tmp_path):
+def test_world_follows_the_camera_and_restores(world, clean_file, tmp_path):
     """The VR World's background is the map along the view direction in the scene camera's
     frame (drivers, not Vector Transform): the front half of a quadrant map fills the render's
     quadrants for any camera pose, set before or after attaching."""
@@ -565,8 +575,8 @@ def test_world_follows_the_camera_and_restores(shading, clean_file, tmp_path):
     rgb[h // 2 :, : w // 2] = GREEN
     rgb[h // 2 :, w // 2 :] = MAGENTA
     rgb[:, : w // 4] = rgb[:, 3 * w // 4 :] = (0.0, 1.0, 1.0)  # behind the camera: never seen
-    shading.attach_world(scene, map_image("quadrants", rgb), strength=1.0)
-    assert scene.world.name == shading.WORLD_NAME
+    world.attach_world(scene, map_image("quadrants", rgb), strength=1.0)
+    assert scene.world.name == world.WORLD_NAME
     size = (32, 32)
     for location, roll in [((0.0, -4.0, 0.0), 0.0), ((2.0, 3.0, 1.0), 0.7)]:
         aim(cam, location, (0.3, -0.2, 0.5), roll)
@@ -580,10 +590,10 @@ def test_world_follows_the_camera_and_restores(shading, clean_file, tmp_path):
             assert pixels[ys, xs].reshape(-1, 3) == pytest.approx(
                 np.broadcast_to(colour, (11 * 11, 3)), abs=1e-3
             )
-    shading.detach_world(scene)
+    world.detach_world(scene)
     assert scene.world == user_world
     assert vr_leftovers() == []
-    assert shading.WORLD_NAME not in bpy.data.worlds
+    assert world.WORLD_NAME not in bpy.data.worlds
 
 
 def test_objects_in_world_mode_share_one_world(shading, clean_file):
