@@ -211,47 +211,12 @@ def _build_camera_view(
     width, height = seg.width, seg.height
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
     latlong = layout == "latlong"  # a lat-long's texels are worked on row by row, not listed
-    directions = None if latlong else texel_directions(layout, size, dtype=np.float32)
     count = shape[0] * shape[1]
-    position = np.empty((count, 2), np.float32)
-    angle = np.empty(count, np.float32)
-    inside = np.empty(count, bool) if latlong else None
     filled = params.extend_fade is not None
-
-    # The block of rows and columns whose texels may be anything but the fill alone: a
-    # lat-long's texels outside it are never projected, given a level or looked at.
-    band, cols = (0, shape[0]), (0, shape[1])
-    if latlong:  # row by row, the trigonometry per row and column
-        if filled:
-            reach = math.radians(max(params.extend_fade, 0.0))
-            band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
-        start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
-        if filled:
-            cols = camera_view.latlong_cols_near_view(
-                size, width, height, intrinsics, reach, (start, stop)
-            )
-        grid = (position.reshape(shape + (2,)), angle.reshape(shape), inside.reshape(shape))
-        columns = slice(*cols)
-
-        def project(a, b):
-            rows = slice(start + a, start + b)
-            texels = camera_view.clamp_to_view_latlong(
-                size, width, height, intrinsics, rows, columns
-            )
-            for array, values in zip(grid, texels, strict=True):
-                array[rows, columns] = values.reshape(array[rows, columns].shape)
-
-        for_blocks(project, stop - start, min_rows=16, max_rows=max(1, CHUNK // size))
-    else:
-        start, stop = 0, shape[0]
-
-        def project(a, b):
-            position[a:b], angle[a:b] = camera_view.clamp_to_view(
-                directions.reshape(-1, 3)[a:b], width, height, intrinsics
-            )
-
-        for_blocks(project, count, max_rows=CHUNK)
-    position = position.reshape(shape + (2,))
+    position, angle, inside, directions, band, rows, cols = _clamped(
+        layout, size, width, height, intrinsics, params
+    )
+    start, stop = rows
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
     block = (slice(start, stop), slice(*cols))  # may be seen or near; flat ids from its own:
@@ -265,7 +230,6 @@ def _build_camera_view(
         seen = ids(np.flatnonzero(inside.reshape(shape)[block]))
         centres = directions_at(layout, size, seen, 0.0, 0.0)
     else:
-        directions = directions.reshape(-1, 3)
         seen, centres = None, directions
     seen, rect = seen_texels.seen_footprints(
         layout, size, centres, width, height, intrinsics, ids=seen
@@ -290,11 +254,6 @@ def _build_camera_view(
     )
     lod_map = _lod(layout, size, position, band, cols).ravel()
     near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
-    near_ext = (
-        camera_view.fade_weight(angle[near], params.extend_fade)
-        if filled
-        else np.ones(near.size, np.float32)
-    )
     # Seen texels on level 0 read the plate itself (supersample.py), not the pyramid: unless
     # `level0` (the ground method's taps may read it), the pyramid need not hold level 0.
     pyramid_seen = seen_level if level0 else seen_level[seen_level > 0]
@@ -313,69 +272,21 @@ def _build_camera_view(
     first = min(min(used), max(top - 1, 0))
     levels = min(max(deepest) + 1, top + 1)
     offsets = level_offsets(shapes, first)
-    fill = None
+    fill, fill_texels, main = None, None, (None, None, None)
     if filled:
-        sides = 2 if params.fill_sides else 1
-        bins, window, counts = fill_geometry(
-            shapes[level_fill],
-            level_fill,
-            intrinsics,
-            params.fill_width,
-            params.fill_spread,
-            sides,
-            params.up,
-        )
         base = int(level_offsets(shapes[:levels], first)[-1])
-        fill = Fill(
-            level_fill,
-            base,
-            params.fill_saturation,
-            sides,
-            params.fill_energy,
-            bins,
-            window,
-            counts,
-            sky_share(window, counts) if params.up is not None else None,
-            params.sky_gain,
+        fill, fill_texels, main = _camera_fill(
+            layout, size, shapes, level_fill, base, intrinsics, width, params, directions
         )
-        # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
-        toward = (
-            directions_at(layout, size, np.arange(size), 0, 0)
-            if latlong
-            else directions
-        )
-        side = side_weight(toward, intrinsics, width) if sides == 2 else None
-        _frozen(bins, window, counts)
-
     # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
     # fill, which is written over every texel before it (extension.py).
     px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
-    near_ext = near_ext if filled else None
+    near_ext = camera_view.fade_weight(angle[near], params.extend_fade) if filled else None
     edge = extension(near, px, py, near_lod, top, near_ext)
-    fill_texels = None
-    main = (None, None, None)
-    if filled:
-        if latlong:  # compact: 2 bytes a texel, read per frame by fill_values
-            if params.up is None:  # a texel's elevation is its row's: one step per row
-                fill_steps = fill_bins_latlong(size)
-            else:
-                fill_steps = np.empty(count, np.uint16)
-
-                def fill_rows(a, b):
-                    texels = slice(a * size, b * size)
-                    fill_bins_latlong(
-                        size, params.up, slice(a, b), out=fill_steps[texels]
-                    )
-
-                for_blocks(fill_rows, shape[0], min_rows=16, max_rows=max(1, CHUNK // size))
-            fill_texels = (fill_steps, None if side is None else np.repeat(side, 3))
-        else:  # the fill's taps for every texel, in order, before the others
-            main = (None, *fill_taps(directions, fill.base, side, params.up))
     seen_samples = None
     if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
         positions = seen_texels.supersample_positions(layout, size, seen, intrinsics)
         seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
-    _frozen(*(a for a in main if a is not None), *(fill_texels or ()))
     return LookupTable(
         segmentation=seg,
         layout=layout,
@@ -391,6 +302,105 @@ def _build_camera_view(
         supersample=seen_samples,
         extension=edge,
     )
+
+
+def _clamped(layout, size, width, height, intrinsics, params):
+    """Every texel the camera view may read the plate for, clamped onto the plate's view
+    (camera_view.clamp_to_view): (position (H, W, 2) float32 plate positions, angle (T,)
+    float32 radians to the clamped twin, inside (T,) bool whether the plate sees the texel's
+    centre (a lat-long; None on a cube), directions (T, 3) float32 texel directions (a cube;
+    None on a lat-long), band (first, stop) the rows the extension may reach, rows (first,
+    stop) and cols (first, stop) the block worked on). A lat-long's texels outside the block
+    are the fill alone: never projected, given a level or looked at; its trigonometry is per
+    row and column."""
+    shape = map_shape(layout, size)
+    count = shape[0] * shape[1]
+    position = np.empty((count, 2), np.float32)
+    angle = np.empty(count, np.float32)
+    filled = params.extend_fade is not None
+    band, cols = (0, shape[0]), (0, shape[1])
+    if layout != "latlong":
+        directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
+
+        def project(a, b):
+            position[a:b], angle[a:b] = camera_view.clamp_to_view(
+                directions[a:b], width, height, intrinsics
+            )
+
+        for_blocks(project, count, max_rows=CHUNK)
+        return position.reshape(shape + (2,)), angle, None, directions, band, band, cols
+    inside = np.empty(count, bool)
+    if filled:
+        reach = math.radians(max(params.extend_fade, 0.0))
+        band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
+    start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
+    if filled:
+        cols = camera_view.latlong_cols_near_view(
+            size, width, height, intrinsics, reach, (start, stop)
+        )
+    grid = (position.reshape(shape + (2,)), angle.reshape(shape), inside.reshape(shape))
+    columns = slice(*cols)
+
+    def project_rows(a, b):
+        rows = slice(start + a, start + b)
+        texels = camera_view.clamp_to_view_latlong(size, width, height, intrinsics, rows, columns)
+        for array, values in zip(grid, texels, strict=True):
+            array[rows, columns] = values.reshape(array[rows, columns].shape)
+
+    for_blocks(project_rows, stop - start, min_rows=16, max_rows=max(1, CHUNK // size))
+    return position.reshape(shape + (2,)), angle, inside, None, band, (start, stop), cols
+
+
+def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, directions):
+    """The camera view's fill (fill.py): (its Fill, computed per frame on mip `level` into the
+    rows from `base`; fill_texels: a lat-long's steps and side weights, read by
+    fill.fill_values, or None; main (texels, index, weight): a cube's taps for every texel,
+    or Nones)."""
+    latlong = layout == "latlong"
+    sides = 2 if params.fill_sides else 1
+    bins, window, counts = fill_geometry(
+        shapes[level],
+        level,
+        intrinsics,
+        params.fill_width,
+        params.fill_spread,
+        sides,
+        params.up,
+    )
+    fill = Fill(
+        level,
+        base,
+        params.fill_saturation,
+        sides,
+        params.fill_energy,
+        bins,
+        window,
+        counts,
+        sky_share(window, counts) if params.up is not None else None,
+        params.sky_gain,
+    )
+    _frozen(bins, window, counts)
+    # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
+    toward = directions_at(layout, size, np.arange(size), 0, 0) if latlong else directions
+    side = side_weight(toward, intrinsics, width) if sides == 2 else None
+    if not latlong:  # the fill's taps for every texel, in order, before the others
+        main = (None, *fill_taps(directions, base, side, params.up))
+        _frozen(*main[1:])
+        return fill, None, main
+    # Compact: 2 bytes a texel, read per frame by fill_values.
+    if params.up is None:  # a texel's elevation is its row's: one step per row
+        steps = fill_bins_latlong(size)
+    else:
+        rows = size // 2
+        steps = np.empty(rows * size, np.uint16)
+
+        def fill_rows(a, b):
+            fill_bins_latlong(size, params.up, slice(a, b), out=steps[a * size : b * size])
+
+        for_blocks(fill_rows, rows, min_rows=16, max_rows=max(1, CHUNK // size))
+    fill_texels = (steps, None if side is None else np.repeat(side, 3))
+    _frozen(*fill_texels)
+    return fill, fill_texels, (None, None, None)
 
 
 def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTable:
