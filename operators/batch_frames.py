@@ -14,7 +14,7 @@ import contextlib
 import os
 import time
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 
@@ -258,32 +258,13 @@ def _resume(paths, size, inputs, overwrite):
     return why is None, why
 
 
-def _render_frames(options, started, source, frames, outputs, report_path):
-    """render_frames once the run owns its frames' outputs (OutputLock)."""
-    scene = bpy.context.scene
+def _run_header(scene, options, source, name, out, size, own, use_passes):
+    """What the report says of the whole run (batch_report.run_report puts the frames after
+    it): the shot, plate, outputs and their colour, the render and the reflections."""
     settings = scene.virtual_reflections
     fmt = options.format
     passes = options.passes
-    out = os.path.abspath(options.out)
-    name = shot_name(options)
-
-    # The scene, from the first frame's plate.
-    scene.frame_set(frames[0])
-    image = source.load(frames[0])
-    settings.plate_image = image
-    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
-    configure(scene, options)
-    use_passes = not options.no_reflections and options.passes != 1
-    own = None if use_passes else artist_compositor(scene)  # passes composite in NumPy
-    render_settings(scene, own is not None)
-    size = render_size(scene)
-    # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
-    # run's. The report may be shared with a live run on other frames: only dead runs' go.
-    owned = [*outputs.values(), *(element_path(out, name, f) for f in outputs)]
-    records = [os.path.basename(batch_record.record_path(p))[1:] for p in outputs.values()]
-    remove_stale_temps(out, _stems(owned) + records, live_ok=True)
-    remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
-    header = {
+    return {
         "version": 1,
         "shot": bpy.data.filepath,
         "scene": scene.name,
@@ -318,6 +299,33 @@ def _render_frames(options, started, source, frames, outputs, report_path):
             "combine": settings.combine,
         },
     }
+
+
+def _render_frames(options, started, source, frames, outputs, report_path):
+    """render_frames once the run owns its frames' outputs (OutputLock)."""
+    scene = bpy.context.scene
+    settings = scene.virtual_reflections
+    fmt = options.format
+    out = os.path.abspath(options.out)
+    name = shot_name(options)
+
+    # The scene, from the first frame's plate.
+    scene.frame_set(frames[0])
+    image = source.load(frames[0])
+    settings.plate_image = image
+    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
+    configure(scene, options)
+    use_passes = not options.no_reflections and options.passes != 1
+    own = None if use_passes else artist_compositor(scene)  # passes composite in NumPy
+    render_settings(scene, own is not None)
+    size = render_size(scene)
+    # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
+    # run's. The report may be shared with a live run on other frames: only dead runs' go.
+    owned = [*outputs.values(), *(element_path(out, name, f) for f in outputs)]
+    records = [os.path.basename(batch_record.record_path(p))[1:] for p in outputs.values()]
+    remove_stale_temps(out, _stems(owned) + records, live_ok=True)
+    remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
+    header = _run_header(scene, options, source, name, out, size, own, use_passes)
     print(
         f"frames {len(frames)} ({frames[0]}-{frames[-1]}), plate {source.kind} {source.text}, "
         f"render {size[0]}x{size[1]} with {scene.render.engine}, out {out}"
@@ -340,21 +348,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     job = FrameJob(scene, source, fmt, objects, filters, step, use_passes, options, own)
     with sequence.suspended():
         if objects and not use_passes:
-            # Attach first (at the first frame), so skipped and pre-rolled frames can step the
-            # bounds filters: a resumed run and a farm chunk then match one uninterrupted run.
-            pixels, _ = plate.pixels(scene, image)
-            plate_shape = pixels.shape
-            attached = generate.generate(scene, bpy.context.evaluated_depsgraph_get(), objects)
-            warnings += attached.warnings
-            if not attached.done:
-                raise ValueError("no reflection generated: " + "; ".join(attached.warnings))
-            first = frames[0]
-            count = sequence.preroll(settings.smoothing)
-            for frame in range(first - count * step, first, step):
-                if frame >= scene.frame_start:
-                    scene.frame_set(frame)
-                    depsgraph = bpy.context.evaluated_depsgraph_get()
-                    sequence.advance(scene, depsgraph, filters, frame, step, plate_shape)
+            warnings += job.attach(image, frames[0])
         for i, frame in enumerate(frames, 1):
             t0 = time.perf_counter()
             path = outputs[frame]
@@ -367,9 +361,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
                 entry.pop("rendered_again", None)
                 entry["fingerprint"] = batch_record.digest(inputs)
                 if objects and not use_passes:
-                    scene.frame_set(frame)
-                    depsgraph = bpy.context.evaluated_depsgraph_get()
-                    sequence.advance(scene, depsgraph, filters, frame, step, plate_shape)
+                    job.step_through(frame)
                 entries[frame] = entry
                 done = os.path.basename(path)
                 print(f"frame {i}/{len(frames)} [{frame}] skipped: {done} is complete")
@@ -423,6 +415,31 @@ class FrameJob:
     use_passes: bool
     options: BatchOptions
     compositor: str | None = None  # the shot's own compositor (artist_compositor), if any
+    plate_shape: list = field(default_factory=list)  # the plate's (H, W, 3), once attached
+
+    def attach(self, image, first):
+        """Generate once at the first frame (before any is rendered), so skipped and
+        pre-rolled frames can step the bounds filters: a resumed run and a farm chunk then
+        match one uninterrupted run. Returns Generate's warnings."""
+        scene = self.scene
+        pixels, _ = plate.pixels(scene, image)
+        self.plate_shape[:] = pixels.shape
+        attached = generate.generate(scene, bpy.context.evaluated_depsgraph_get(), self.objects)
+        if not attached.done:
+            raise ValueError("no reflection generated: " + "; ".join(attached.warnings))
+        count = sequence.preroll(scene.virtual_reflections.smoothing)
+        for frame in range(first - count * self.step, first, self.step):
+            if frame >= scene.frame_start:
+                self.step_through(frame)
+        return list(attached.warnings)
+
+    def step_through(self, frame):
+        """A frame not rendered here (pre-roll, or skipped as complete): the bounds filters
+        still step through it."""
+        self.scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        shape = tuple(self.plate_shape)
+        sequence.advance(self.scene, depsgraph, self.filters, frame, self.step, shape)
 
     def render(self, frame, path, element):
         """One frame: plate, maps, render (kept as the CG element ``element``), composite
