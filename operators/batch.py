@@ -6,7 +6,7 @@ movie) goes to batch_frames.render_frames. The steps both share are in batch_ren
 and SIGTERM in batch_signals.py.
 
 Nothing a user had is lost (issue 14, docs/failures.md): every output, one frame or a range,
-is written under this process's temporary name, read back whole (`imagefiles.commit`) and
+is written under this process's temporary name, read back whole (`atomic_files.commit`) and
 only then renamed over the previous file; an output that would replace a plate is refused;
 a run locks the outputs it writes (batch_lock.py), so a second run on the same frames is
 refused instead of deleting the first's temporary files.
@@ -21,14 +21,14 @@ import time
 
 import bpy
 
-from ..virtual_reflections.composite import over, resize_nearest
-from ..virtual_reflections.imagefiles import (
+from ..virtual_reflections.atomic_files import (
     ImageError,
     held_stderr,
     remove_stale_temps,
     temp_path,
-    write_rgba,
 )
+from ..virtual_reflections.composite import over, resize_nearest
+from ..virtual_reflections.imagefiles import write_rgba
 from . import compositor, generate, interreflect, plate
 from .batch_frames import PlateSource, render_frames
 from .batch_lock import OutputLock

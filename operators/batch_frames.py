@@ -18,16 +18,15 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ..virtual_reflections.composite import over, resize_nearest
-from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
-from ..virtual_reflections.imagefiles import (
+from ..virtual_reflections.atomic_files import (
     ImageError,
-    check_complete,
     held_stderr,
     remove_stale_temps,
     temp_path,
-    write_rgba,
 )
+from ..virtual_reflections.composite import over, resize_nearest
+from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
+from ..virtual_reflections.imagefiles import check_complete, write_rgba
 from . import batch_record, compositor, generate, interreflect, plate, sequence
 from .batch_lock import OutputLock
 from .batch_options import BatchOptions

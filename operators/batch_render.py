@@ -4,7 +4,7 @@ the output folder, a render read back as arrays, and an image written whole thro
 
 Images are written through Blender (save_render with the scene's colour management), so no
 extra Python package is needed inside Blender; every output goes to a temporary file, is read
-back whole (`imagefiles.commit`) and only then renamed over the previous file.
+back whole (`atomic_files.commit`) and only then renamed over the previous file.
 """
 
 import json
@@ -15,17 +15,13 @@ import time
 import bpy
 import numpy as np
 
+from ..virtual_reflections.atomic_files import ImageError, commit, held_stderr, same_file, temp_path
 from ..virtual_reflections.imagefiles import (
     HALF_MAX,
-    ImageError,
     check_complete,
-    commit,
-    held_stderr,
     read_channels,
     read_header,
     read_rgba,
-    same_file,
-    temp_path,
 )
 from ..virtual_reflections.memory import check_fits, plate_job_bytes
 from . import compositor, plate, sequence, shading

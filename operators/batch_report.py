@@ -6,7 +6,7 @@ import json
 import os
 import time
 
-from ..virtual_reflections.imagefiles import temp_path
+from ..virtual_reflections.atomic_files import temp_path
 
 
 def write_json(path, data):

@@ -21,7 +21,8 @@ import tempfile
 import bpy
 import numpy as np
 
-from ..virtual_reflections.imagefiles import ImageError, write_map
+from ..virtual_reflections.atomic_files import ImageError
+from ..virtual_reflections.imagefiles import write_map
 from . import images, undo_pixels
 from .choices import addon_preferences
 
@@ -93,7 +94,7 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     """Write an (H, W, 3) float32 map into the image ``name`` (made if missing, updated in
     place) and keep it: saved as EXR into ``save_dir`` when given, else packed into the .blend
     at its next save. Returns the image. ValueError when an image of that name is not ours;
-    imagefiles.ImageError (a ValueError) when the file cannot be written."""
+    atomic_files.ImageError (a ValueError) when the file cannot be written."""
     h, w = env.shape[:2]
     image = images.own_image(name, w, h, kind)
     image.use_fake_user = True  # kept with the .blend even while no material uses it

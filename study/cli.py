@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from virtual_reflections.imagefiles import ImageError
+from virtual_reflections.atomic_files import ImageError
 
 EXIT_BAD_INPUT = 2
 

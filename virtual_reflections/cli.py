@@ -31,15 +31,9 @@ import signal
 import sys
 import time
 
+from .atomic_files import ImageError, same_file
 from .envmap import DEFAULT_SIZE
-from .imagefiles import (
-    ImageError,
-    check_writable,
-    read_header,
-    read_plate,
-    same_file,
-    write_map,
-)
+from .imagefiles import check_writable, read_header, read_plate, write_map
 from .memory import check_fits, plate_job_bytes
 from .params import METHOD_ALIASES, METHODS, Params
 

@@ -19,7 +19,7 @@ import struct
 
 import numpy as np
 
-from .imagefiles import ImageError
+from .atomic_files import ImageError
 
 MAGIC = 20000630
 TILED, LONG_NAMES, DEEP, MULTIPART = 0x200, 0x400, 0x800, 0x1000

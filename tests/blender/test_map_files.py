@@ -104,11 +104,12 @@ def test_packing_without_openimageio_still_keeps_the_map(addon, tmp_path, monkey
     env = smooth_map(64)
     maps.store_map("VR Map Fallback", env)
     imagefiles = addon_part("virtual_reflections.imagefiles")
+    image_error = addon_part("virtual_reflections.atomic_files").ImageError
 
     def missing():
-        raise imagefiles.ImageError("OpenImageIO is not installed (pip install OpenImageIO)")
+        raise image_error("OpenImageIO is not installed (pip install OpenImageIO)")
 
-    monkeypatch.setattr(imagefiles, "_oiio", missing)
+    monkeypatch.setattr(imagefiles, "openimageio", missing)
     blend = tmp_path / "fallback.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
     monkeypatch.undo()

@@ -6,8 +6,9 @@ import OpenImageIO as oiio
 import pytest
 
 from virtual_reflections import environment_map
+from virtual_reflections.atomic_files import ImageError
 from virtual_reflections.colour import linear_to_srgb, srgb_to_linear
-from virtual_reflections.imagefiles import ImageError, read_plate, write_map
+from virtual_reflections.imagefiles import read_plate, write_map
 
 
 def test_srgb_half_decodes_to_0_214():

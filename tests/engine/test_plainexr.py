@@ -5,7 +5,7 @@ inside the display window; compressed and damaged files are one-line errors."""
 import numpy as np
 import pytest
 
-from virtual_reflections import imagefiles, plainexr
+from virtual_reflections import atomic_files, imagefiles, plainexr
 
 oiio = pytest.importorskip("OpenImageIO")
 
@@ -67,13 +67,13 @@ def test_single_part_with_a_data_window_inside_the_display_window(tmp_path):
 def test_compressed_missing_and_damaged_files_are_one_line_errors(tmp_path):
     path = tmp_path / "zip.exr"
     write(path, [("", planes(np.random.default_rng(5), ["R", "G", "B"]), "float", None)], "zip")
-    with pytest.raises(imagefiles.ImageError, match="compressed EXR"):
+    with pytest.raises(atomic_files.ImageError, match="compressed EXR"):
         plainexr.read_channels(str(path))
-    with pytest.raises(imagefiles.ImageError, match="image not found"):
+    with pytest.raises(atomic_files.ImageError, match="image not found"):
         plainexr.read_channels(str(tmp_path / "missing.exr"))
     cut = tmp_path / "cut.exr"
     write(cut, [("", planes(np.random.default_rng(6), ["R"]), "float", None)])
     cut.write_bytes(cut.read_bytes()[:60])
-    with pytest.raises(imagefiles.ImageError, match="cannot read") as err:
+    with pytest.raises(atomic_files.ImageError, match="cannot read") as err:
         plainexr.read_channels(str(cut))
     assert "\n" not in str(err.value)

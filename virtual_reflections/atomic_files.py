@@ -1,0 +1,242 @@
+"""Image files that appear whole or not at all, and the one-line errors of image files.
+
+Every writer writes a temporary file beside the target (`temp_path`: hidden, named with the
+writer's process id), which `commit` reads back whole with OpenImageIO before renaming it into
+place, so a full disk or a dying writer never replaces a good file with a partial one (some
+image libraries report no error on a full disk: libpng; the read-back catches that). Temporary
+files of writers that died (SIGKILL) are removed by the next write of the same target
+(`remove_stale_temps`). What the libraries print on the process's stderr themselves is
+silenced or held (`quiet_stderr`, `held_stderr`), so a failure is the tool's one line:
+`ImageError` (bad input, exit code 2) or `WriteError` (a full disk, exit code 1).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import resource
+import sys
+import tempfile
+
+EXIT_BAD_INPUT = 2
+
+
+EXIT_FAILED = 1
+
+
+class ImageError(ValueError):
+    """A plate or map file that cannot be read or written; the message is one line.
+    ``exit_code``: 2, bad input (a missing or unreadable plate, a bad output name)."""
+
+    exit_code = EXIT_BAD_INPUT
+
+
+class WriteError(ImageError):
+    """Writing failed mid-run (a full disk, an I/O error): nothing was replaced; exit code 1,
+    worth running again."""
+
+    exit_code = EXIT_FAILED
+
+
+def same_file(a: str, b: str) -> bool:
+    """True when paths ``a`` and ``b`` name one file (or would: same absolute path)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.normcase(os.path.realpath(a)) == os.path.normcase(os.path.realpath(b))
+
+
+_TEMP = re.compile(r"^\.(?P<stem>.+)\.(?P<pid>\d+)\.(?P<tag>tmp|render)(?:\.\w+)?$")
+
+
+def temp_path(path: str, tag: str = "tmp") -> str:
+    """The hidden temporary name beside ``path`` this process writes it under:
+    ``.<stem>.<pid>.<tag><ext>``."""
+    folder, base = os.path.split(os.path.abspath(path))
+    stem, ext = os.path.splitext(base)
+    return os.path.join(folder, f".{stem}.{os.getpid()}.{tag}{ext}")
+
+
+def pid_alive(pid: int) -> bool:
+    """True when process ``pid`` exists on this machine (False for this process's own id is
+    not implied: the caller decides what to do with its own files)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError:
+        return False
+    return True
+
+
+def remove_stale_temps(folder: str, stems, live_ok: bool = False) -> list[str]:
+    """Delete the temporary files of ``stems`` (output file names without extension) in
+    ``folder`` that a writer which is no longer running left (SIGKILL, power loss): never
+    this process's, never a live process's (unless ``live_ok``: the caller holds the lock of
+    these outputs). Returns the paths removed."""
+    stems = set(stems)
+    removed = []
+    try:
+        entries = os.listdir(folder)
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TEMP.match(entry)
+        if not m or m.group("stem") not in stems:
+            continue
+        pid = int(m.group("pid"))
+        if pid == os.getpid() or (not live_ok and pid_alive(pid)):
+            continue
+        path = os.path.join(folder, entry)
+        try:
+            os.remove(path)
+            removed.append(path)
+        except OSError:
+            pass
+    return removed
+
+
+@contextlib.contextmanager
+def quiet_stderr():
+    """Silence what image libraries print on the process's stderr themselves (libpng's
+    "libpng error: ..."), so that a failure is the tool's one line, not two."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def held_stderr():
+    """Hold what is printed on the process's stderr (fd 2: Blender's and the libraries' own
+    lines) while the block runs: replayed when it succeeds, dropped when it raises, so that
+    a failure is the tool's one line."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        held = tempfile.TemporaryFile()
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    ok = False
+    try:
+        os.dup2(held.fileno(), 2)
+        yield
+        ok = True
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        if ok:
+            held.seek(0)
+            data = held.read()
+            if data:
+                with contextlib.suppress(OSError):
+                    os.write(2, data)
+        held.close()
+
+
+def openimageio():
+    try:
+        import OpenImageIO
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise ImageError("OpenImageIO is not installed (pip install OpenImageIO)") from exc
+    return OpenImageIO
+
+
+def first_line(message: str) -> str:
+    lines = [line for line in (message or "").splitlines() if line.strip()]
+    return lines[0] if lines else "unknown error"
+
+
+def verify_image(path: str, width: int, height: int, what: str | None = None) -> None:
+    """Read ``path`` back whole; WriteError (one line, naming ``what`` or ``path``) unless it
+    is a complete image of ``width`` x ``height``."""
+    name = what or path
+    oiio = openimageio()
+    with quiet_stderr():
+        _verify(oiio, path, width, height, name)
+
+
+def _verify(oiio, path, width, height, name):
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        oiio.geterror()
+        raise WriteError(f"cannot write {name}: the file written is unreadable (disk full?)")
+    try:
+        spec = inp.spec()
+        if (spec.width, spec.height) != (width, height):
+            raise WriteError(
+                f"cannot write {name}: the file written is {spec.width}x{spec.height}, "
+                f"not {width}x{height}"
+            )
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
+        if pixels is None or inp.has_error:
+            raise WriteError(
+                f"cannot write {name}: the file written is incomplete (disk full?): "
+                f"{first_line(inp.geterror())}"
+            )
+    finally:
+        inp.close()
+        oiio.geterror()  # drop what the library kept, so it is not printed at exit
+
+
+def _fsync(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def commit(temp: str, path: str, width: int, height: int) -> None:
+    """Verify the image ``temp`` (complete, ``width`` x ``height``), flush it to disk and
+    rename it to ``path``. On any failure ``temp`` is removed, ``path`` untouched, and a
+    WriteError (one line) raised. The one way every writer puts an image in place."""
+    try:
+        verify_image(temp, width, height, what=path)
+        _fsync(temp)
+        os.replace(temp, path)
+    except OSError as exc:
+        raise WriteError(f"cannot write {path}: {exc.strerror or exc}") from exc
+    finally:
+        if os.path.exists(temp):
+            os.remove(temp)
+    try:
+        _fsync(os.path.dirname(os.path.abspath(path)) or ".")
+    except OSError:
+        pass  # some file systems cannot sync a folder; the file itself is on disk
+
+
+def free_bytes(folder: str) -> int:
+    """Bytes this process may still write into ``folder``: the file system's free space,
+    and the process's file-size limit (RLIMIT_FSIZE)."""
+    try:
+        st = os.statvfs(folder)
+        free = st.f_bavail * st.f_frsize
+    except OSError:
+        free = 1 << 62
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return free if soft == resource.RLIM_INFINITY else min(free, soft)
+
+
+def check_space(path: str, nbytes: int) -> None:
+    """WriteError (one line) when fewer than ``nbytes`` can be written beside ``path``."""
+    folder = os.path.dirname(os.path.abspath(path))
+    free = free_bytes(folder)
+    if free < nbytes:
+        raise WriteError(
+            f"cannot write {path}: not enough space in {folder} "
+            f"(needs up to {nbytes / 1e6:.1f} MB, {free / 1e6:.1f} MB free)"
+        )
