@@ -483,47 +483,12 @@ class FrameJob:
                 warnings += list(r.warnings)
             summary = f"{len(reports)} pass(es)"
         else:
+            changes, summary = {}, "no reflections"
             if objects:
-                identity = (plate_file, frame if source.kind == "movie" else None)
-                depsgraph = bpy.context.evaluated_depsgraph_get()
-                update = sequence.update(
-                    scene,
-                    depsgraph,
-                    filters=self.filters,
-                    frame=frame,
-                    step=self.step,
-                    plate_frame=plate.PlateFrame(pixels, info, plate_file, identity),
-                )
-                for stage, seconds in update.timings.items():
-                    times[stage] = round(times.get(stage, 0.0) + seconds, 4)
-                warnings += update.warnings
-                changes = {
-                    "maps_updated": update.maps,
-                    "maps_unchanged": update.unchanged,
-                    "tables_built": update.tables["built"],
-                    "tables_reused": update.tables["reused"],
-                    "bounds": {k: list(v) for k, v in update.boxes.items()},
-                    "raw_bounds": {k: [round(x, 3) for x in v] for k, v in update.raw.items()},
-                }
-                summary = f"{len(update.maps)} map(s) updated"
-            else:
-                summary = "no reflections"
-            t = time.perf_counter()
-            render_path = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
-            try:
-                own = self.compositor is not None
-                rgba, comp, seconds = render_rgba(scene, render_path, own)
-                times["render"] = round(seconds, 4)
-                t = time.perf_counter()
-                write_rgba(element, rgba)
-            except ImageError as exc:  # Blender could not write it whole (a full disk)
-                raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
-            finally:
-                if os.path.exists(render_path):
-                    os.remove(render_path)
-            if comp is None:
-                comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
-            timed("composite", t)
+                changes, more = self._update_maps(frame, plate_file, pixels, info, times)
+                warnings += more
+                summary = f"{len(changes['maps_updated'])} map(s) updated"
+            comp = self._render_element(frame, path, element, pixels, times)
         t = time.perf_counter()
         write_image(scene, comp, path, FORMATS[self.format])  # atomic and verified
         timed("write", t)
@@ -541,3 +506,49 @@ class FrameJob:
             }
         )
         return entry
+
+    def _update_maps(self, frame, plate_file, pixels, info, times):
+        """The maps of ``frame`` from its plate (sequence.update, the bounds smoothed over the
+        run's frames); its stage timings added to ``times``. Returns (the report's changes,
+        warnings)."""
+        identity = (plate_file, frame if self.source.kind == "movie" else None)
+        update = sequence.update(
+            self.scene,
+            bpy.context.evaluated_depsgraph_get(),
+            filters=self.filters,
+            frame=frame,
+            step=self.step,
+            plate_frame=plate.PlateFrame(pixels, info, plate_file, identity),
+        )
+        for stage, seconds in update.timings.items():
+            times[stage] = round(times.get(stage, 0.0) + seconds, 4)
+        changes = {
+            "maps_updated": update.maps,
+            "maps_unchanged": update.unchanged,
+            "tables_built": update.tables["built"],
+            "tables_reused": update.tables["reused"],
+            "bounds": {k: list(v) for k, v in update.boxes.items()},
+            "raw_bounds": {k: [round(x, 3) for x in v] for k, v in update.raw.items()},
+        }
+        return changes, list(update.warnings)
+
+    def _render_element(self, frame, path, element, pixels, times):
+        """Render ``frame``, keep the render as the CG element ``element`` and return the
+        composite: the shot's own compositor's, or the render over the plate ``pixels``."""
+        t = time.perf_counter()
+        render_path = os.path.splitext(temp_path(path, "render"))[0] + ".exr"
+        try:
+            own = self.compositor is not None
+            rgba, comp, seconds = render_rgba(self.scene, render_path, own)
+            times["render"] = round(seconds, 4)
+            t = time.perf_counter()
+            write_rgba(element, rgba)
+        except ImageError as exc:  # Blender could not write it whole (a full disk)
+            raise BatchError(f"cannot write the render of frame {frame}: {exc}") from exc
+        finally:
+            if os.path.exists(render_path):
+                os.remove(render_path)
+        if comp is None:
+            comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
+        times["composite"] = round(times.get("composite", 0.0) + time.perf_counter() - t, 4)
+        return comp
