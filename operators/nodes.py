@@ -64,3 +64,14 @@ def vector_math_node(nodes, links, operation, name, location, *inputs):
     if operation in ("DOT_PRODUCT", "LENGTH", "DISTANCE"):
         return made.outputs["Value"]
     return made.outputs["Vector"]
+
+
+def view_ray(nodes, links):
+    """The "Geometry" node and the Vector Math node "View Ray" made from it: the direction
+    the camera (or reflected) ray travels, -Incoming (both at the left of the tree)."""
+    geometry = new_node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
+    view = new_node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
+    view.operation = "SCALE"
+    view.inputs["Scale"].default_value = -1.0
+    links.new(geometry.outputs["Incoming"], view.inputs[0])
+    return geometry, view

@@ -14,7 +14,7 @@ import bpy
 
 from .ground_nodes import mix_ground
 from .images import CREATED
-from .nodes import find_or_new_group, math_node, new_node
+from .nodes import find_or_new_group, math_node, new_node, view_ray
 
 LOOKUP_GROUP = "VR Camera LatLong"
 
@@ -183,11 +183,7 @@ def ensure_reflection_group(mode, image, ground=None):
     g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (600, 0))
 
     # The mirror direction: the camera ray (-Incoming) reflected about the shading normal.
-    geometry = new_node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
-    view = new_node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
-    view.operation = "SCALE"
-    view.inputs["Scale"].default_value = -1.0
-    links.new(geometry.outputs["Incoming"], view.inputs[0])
+    geometry, view = view_ray(nodes, links)
     reflect = new_node(nodes, "ShaderNodeVectorMath", "Reflection", (-500, 300))
     reflect.operation = "REFLECT"
     links.new(view.outputs["Vector"], reflect.inputs[0])

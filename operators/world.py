@@ -10,7 +10,7 @@ probes' own views as "camera", which scrambles what materials reflect; drivers o
 import bpy
 
 from .images import CREATED, check_local
-from .nodes import USE_NODES_DEPRECATED, math_node, new_node
+from .nodes import USE_NODES_DEPRECATED, math_node, new_node, view_ray
 from .reflection_nodes import ensure_latlong_group, remove_unused_groups
 
 WORLD_NAME = "VR World"
@@ -56,11 +56,7 @@ def attach_world(scene, image, strength=1.0):
     nodes, links = tree.nodes, tree.links
     nodes.clear()
     # In a world shader the camera (or reflected) ray travels along -Incoming.
-    geometry = new_node(nodes, "ShaderNodeNewGeometry", "Geometry", (-900, 300))
-    view = new_node(nodes, "ShaderNodeVectorMath", "View Ray", (-700, 300))
-    view.operation = "SCALE"
-    view.inputs["Scale"].default_value = -1.0
-    links.new(geometry.outputs["Incoming"], view.inputs[0])
+    _, view = view_ray(nodes, links)
 
     # Vector Transform's camera space from the scene camera's axes: x right, y up, z forward.
     camera = new_node(nodes, "ShaderNodeCombineXYZ", "Camera Space", (-200, 0))
