@@ -148,6 +148,14 @@ def parse(argv):
         help="the object the reflective objects stand on, for --method ground (default: the "
         "shot's setting, else a shadow catcher, else the lowest point of the objects)",
     )
+    p.add_argument(
+        "--surroundings",
+        choices=("auto", "open", "enclosed"),
+        default=None,
+        help="for --method ground, how bright the sky the plate does not show is taken to be: "
+        "open (outdoors under open sky), enclosed (a room, a studio, a walled yard) or auto "
+        "(nothing known; default: the shot's setting)",
+    )
     p.add_argument("--frame", type=int, default=None)
     p.add_argument("--engine", choices=("CYCLES", "EEVEE"), default=None)
     p.add_argument("--samples", type=int, default=None)

@@ -212,6 +212,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
             "strength",
             "ior",
             "smoothing",
+            "surroundings",
         )
         if hasattr(settings, key)
     }

@@ -69,6 +69,8 @@ def configure(scene, options: BatchOptions):
                 f"{scene.name!r}"
             )
         settings.ground_object = ground
+    if options.surroundings:
+        settings.surroundings = options.surroundings.upper()
     if options.triangles is not None:
         settings.front = "CONTINUOUS" if options.triangles == 0 else "TRIANGLES"
         settings.triangles = max(4, options.triangles)

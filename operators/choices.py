@@ -45,6 +45,26 @@ METHOD_ITEMS = (
         "onto a cube (neighbouring objects show on the sides facing them)",
     ),
 )
+SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.params.SKY_GAINS
+    (
+        "AUTO",
+        "Auto",
+        "Nothing said of the shot: where the photo shows no sky, the sky is taken as a neutral "
+        "grey 1.6 times the photo's brightness (learnt from six HDRIs of every kind)",
+    ),
+    (
+        "OPEN",
+        "Open Sky",
+        "Outdoors, the sky over most of what stands around (streets, fields, a sunset): the "
+        "unseen sky is taken brighter, 3.6 times the photo's brightness",
+    ),
+    (
+        "ENCLOSED",
+        "Enclosed",
+        "A room, a studio or a yard walled in by buildings: what is above and behind the camera "
+        "is taken darker, 0.7 times the photo's brightness",
+    ),
+)
 FRONT_ITEMS = (
     (
         "CONTINUOUS",

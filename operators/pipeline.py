@@ -21,6 +21,7 @@ import numpy as np
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table
+from ..virtual_reflections.params import SKY_GAINS
 from ..virtual_reflections.prefilter import prefilter_latlong
 from . import bounds, plate, shading
 from .ground_nodes import GroundLookup
@@ -77,7 +78,8 @@ def params(settings, intrinsics=None) -> Params:
     """The engine's Params for a scene's settings. ``intrinsics`` (fx, fy, cx, cy) in plate
     pixels select the camera-view method when Camera View or Camera View + Ground is chosen
     (the ground is added per map: `map_params`); without them (an orthographic camera, the
-    segmentation previews) it is the paper's."""
+    segmentation previews) it is the paper's. The sky prior's gain (used by Camera View +
+    Ground) is the one for the surroundings the artist named (``settings.surroundings``)."""
     n = 0 if settings.front == "CONTINUOUS" else 4 * max(1, round(settings.triangles / 4))
     camera = settings.method in ("CAMERA", "GROUND") and intrinsics is not None
     return Params(
@@ -86,6 +88,7 @@ def params(settings, intrinsics=None) -> Params:
         triangles=n,
         method="camera" if camera else "paper",
         intrinsics=tuple(intrinsics) if camera else None,
+        sky_gain=SKY_GAINS[settings.surroundings.lower()],
     )
 
 

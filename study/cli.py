@@ -109,6 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
         "(Params.sky_gain; default: the add-on's)",
     )
     p.add_argument(
+        "--surroundings",
+        choices=("auto", "open", "enclosed", "artist"),
+        help="with --mirror-only: the panel's Surroundings in every scene; artist: each "
+        "scene's by the kind of its HDRI (open sky or enclosed: study/sky_prior.py KINDS)",
+    )
+    p.add_argument(
         "--split",
         action="store_true",
         help="with --mirror-only: also where the default's error lies: on the pixels the sky "
@@ -142,13 +148,14 @@ def main(argv=None) -> int:
                     cache=args.cache,
                     sky_gain=args.sky_gain,
                     split=args.split,
+                    surroundings=args.surroundings,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
         elif args.command == "sky-prior":
             from .sky_prior import run as run_sky_prior
 
-            run_sky_prior()
+            run_sky_prior(kinds=True)
         else:
             from .bench import run_bench, run_sweep
 

@@ -6,7 +6,10 @@ degrees: the geometric mean of the log-average and the mean luminance, as the fi
 plate), and the error, in sRGB display values clipped at white and weighted by the cosine of
 the elevation, of predicting its upper hemisphere (above 5 degrees) as a neutral grey `gain`
 times that brightness. Prints each HDRI's own best gain, the gain that minimises the summed
-error over the training HDRIs, and the error of that gain and of a neutral 1.0 on every HDRI.
+error over the training HDRIs, and the error of that gain and of a neutral 1.0 on every HDRI;
+then the gain of each kind of surroundings the artist can name in the panel (`KINDS`: open sky,
+enclosed), derived the same way from the training HDRIs of that kind, and its error on the
+held-out HDRIs of that kind (`SKY_GAINS` in virtual_reflections/params.py holds all three).
 
     python -m study sky-prior
 """
@@ -21,6 +24,13 @@ from .evaluate import hdri_dir
 from .panorama import load_equirect
 
 TRAIN = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
+# The kinds of surroundings (Params / SKY_GAINS): what an artist says of a shot. Open sky:
+# outdoors, the sky over most of what stands around (streets, fields, a sunset); enclosed: a
+# room, a studio, a yard walled in by buildings. Forest and night are held out (both open).
+KINDS = {
+    "open": ("city", "sunrise", "sunset", "forest", "night"),
+    "enclosed": ("courtyard", "interior", "studio"),
+}
 GAINS = np.round(np.arange(0.1, 5.01, 0.1), 2)
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -47,8 +57,15 @@ def errors(image) -> np.ndarray:
     return np.array(out)
 
 
-def run() -> float:
-    """Print the table; returns the gain chosen on the training HDRIs."""
+def best_gain(per: dict, names) -> float:
+    """The gain minimising the summed error over the HDRIs ``names`` of ``per``."""
+    total = sum(per[name] for name in names if name in per)
+    return float(GAINS[int(np.argmin(total))])
+
+
+def run(kinds: bool = False):
+    """Print the table; returns the gain chosen on the training HDRIs (with ``kinds``:
+    {"auto": it, "open": .., "enclosed": ..}, each kind's gain from its training HDRIs)."""
     per = {p.stem: errors(load_equirect(str(p))) for p in sorted(hdri_dir().glob("*.exr"))}
     total = sum(e for name, e in per.items() if name in TRAIN)
     chosen = float(GAINS[int(np.argmin(total))])
@@ -61,4 +78,17 @@ def run() -> float:
         used = "yes" if name in TRAIN else "held out"
         best = float(GAINS[int(np.argmin(e))])
         print(f"| {name} | {used} | {best:.1f} | {e[at]:.3f} | {e[one]:.3f} |")
-    return chosen
+    if not kinds:
+        return chosen
+    out = {"auto": chosen}
+    print()
+    print("| surroundings | trained on | gain | held out: error at it / at the all-HDRI gain |")
+    print("|---|---|---|---|")
+    for kind, names in KINDS.items():
+        train = [n for n in names if n in TRAIN]
+        gain = out[kind] = best_gain(per, train)
+        k = int(np.argmin(np.abs(GAINS - gain)))
+        held = [n for n in names if n not in TRAIN and n in per]
+        checks = ", ".join(f"{n} {per[n][k]:.3f} / {per[n][at]:.3f}" for n in held) or "none"
+        print(f"| {kind} | {', '.join(train)} | {gain:.1f} | {checks} |")
+    return out

@@ -144,6 +144,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         col.prop(settings, "method")
         if settings.method == "GROUND":
             col.prop(settings, "ground_object")
+            col.prop(settings, "surroundings")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

@@ -22,6 +22,7 @@ from ..operators.choices import (
     MAP_STORAGE_ITEMS,
     METHOD_ITEMS,
     RESOLUTION_ITEMS,
+    SURROUNDINGS_ITEMS,
 )
 
 
@@ -66,6 +67,14 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         description="The object the reflective objects stand on (Camera View + Ground); empty: "
         "a shadow catcher in the scene, else the lowest point of the objects",
+    )
+    surroundings: EnumProperty(
+        update=_shaping_changed,
+        name="Surroundings",
+        items=SURROUNDINGS_ITEMS,
+        default="AUTO",
+        description="What stands around the shot where the photo shows no sky (Camera View + "
+        "Ground): how bright the unseen sky above and behind the camera is taken to be",
     )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed

@@ -12,6 +12,12 @@ from dataclasses import dataclass
 MAX_TRIANGLES = 1024
 METHODS = ("paper", "camera", "ground")
 METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
+# The sky prior's gain (Params.sky_gain) for the surroundings an artist can name: "auto" knows
+# nothing of the shot (the gain that best predicts the upper hemisphere of six of Blender's
+# HDRIs from their lower one), "open" is outdoors under open sky (the same fit on city, sunrise
+# and sunset), "enclosed" a room, a studio or a walled yard (courtyard, interior, studio).
+# `python -m study sky-prior` derives all three; tests/study/test_sky_prior.py ties them to it.
+SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
 
 
 @dataclass(frozen=True)
@@ -61,7 +67,8 @@ class Params:
     sky_gain:  with `up`: how many times brighter than the whole plate the sky is taken to be
                where the plate shows none above the horizon (fill.sky_share). 1.6: the
                gain that best predicts, in display values, the upper hemisphere of six of
-               Blender's HDRIs from their lower one (docs/ground.md).
+               Blender's HDRIs from their lower one (docs/ground.md); SKY_GAINS holds it and
+               the gains for open and enclosed surroundings.
     """
 
     enlarge: float = 0.075
@@ -80,7 +87,7 @@ class Params:
     fill_energy: float = 0.5
     ground: tuple | None = None
     up: tuple | None = None
-    sky_gain: float = 1.6
+    sky_gain: float = SKY_GAINS["auto"]
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):

@@ -41,6 +41,7 @@ class ScenesInputError(Exception):
 
 
 CASES = ("default", "failures", "inter", "motion", "heldout")
+SURROUNDINGS = ("auto", "open", "enclosed", "artist")  # --surroundings (mirror.surroundings_of)
 
 
 @dataclass(frozen=True)
@@ -104,11 +105,13 @@ def default_cache() -> pathlib.Path:
     return pathlib.Path(tempfile.gettempdir()) / "vr_scenes3d_mirror_cache"
 
 
-def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False):
+def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False, surroundings=None):
     """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
     (as `run_study`'s, with the mirror only, the default method and the plate mean).
     ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is);
-    ``split``: each scene's error split (`mirror.error_split`: one more render a scene)."""
+    ``split``: each scene's error split (`mirror.error_split`: one more render a scene);
+    ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed), or
+    "artist": each scene's by the kind of its HDRI (`mirror.surroundings_of`)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -123,7 +126,15 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False)
     started = time.perf_counter()
     try:
         records, _, methods = mirror.run_scenes(
-            config.specs(), cache, work, config.width, config.samples, say, sky_gain, split
+            config.specs(),
+            cache,
+            work,
+            config.width,
+            config.samples,
+            say,
+            sky_gain,
+            split,
+            surroundings,
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -133,8 +144,10 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False)
         + ("" if config.cases == "default" else f" --cases {config.cases}")
         + " --mirror-only"
         + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}")
+        + ("" if surroundings is None else f" --surroundings {surroundings}")
         + (" --split" if split else ""),
         "sky_gain": sky_gain,
+        "surroundings": surroundings,
         "quick": config.quick,
         "mirror_only": True,
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
@@ -230,6 +243,7 @@ def run_command(
     cache=None,
     sky_gain=None,
     split=False,
+    surroundings=None,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
@@ -237,11 +251,21 @@ def run_command(
     ``cases="failures"``: the failure cases, written to OUT/scenes3d_failures.json, the
     "Where it fails" table of OUT/scenes3d.md and OUT/images/scenes3d_failures_*.png.
     ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``, the sky
-    prior's gain ``sky_gain`` if given): prints its table, and with ``out`` writes only
-    OUT/scenes3d_mirror(_quick).json; with ``split`` also where the default's error lies
-    (`mirror.split_table`)."""
-    if not mirror_only and (cache is not None or sky_gain is not None or split):
-        raise ScenesInputError("--cache, --sky-gain and --split go with --mirror-only")
+    prior's gain ``sky_gain`` or the panel's ``surroundings`` if given): prints its table,
+    and with ``out`` writes only OUT/scenes3d_mirror(_quick).json; with ``split`` also where
+    the default's error lies (`mirror.split_table`)."""
+    if not mirror_only and (
+        cache is not None or sky_gain is not None or split or surroundings is not None
+    ):
+        raise ScenesInputError(
+            "--cache, --sky-gain, --surroundings and --split go with --mirror-only"
+        )
+    if sky_gain is not None and surroundings is not None:
+        raise ScenesInputError("--sky-gain or --surroundings, not both")
+    if surroundings not in (None, *SURROUNDINGS):
+        raise ScenesInputError(
+            f"--surroundings: one of {', '.join(SURROUNDINGS)}, not {surroundings!r}"
+        )
     if sky_gain is not None and not (math.isfinite(sky_gain) and 0.0 <= sky_gain <= 100.0):
         raise ScenesInputError(f"--sky-gain: 0..100, not {sky_gain}")
     if jobs != 1:
@@ -261,7 +285,14 @@ def run_command(
     if mirror_only:
         if cases not in ("default", "heldout"):
             raise ScenesInputError("--mirror-only runs the default or the held-out scenes only")
-        data = run_mirror(config, cache=cache, log=log, sky_gain=sky_gain, split=split)
+        data = run_mirror(
+            config,
+            cache=cache,
+            log=log,
+            sky_gain=sky_gain,
+            split=split,
+            surroundings=surroundings,
+        )
         from . import mirror  # bpy is importable: run_mirror said so
 
         print(mirror.table(data))

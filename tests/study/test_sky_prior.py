@@ -1,4 +1,4 @@
-"""The ground method's sky gain is the one the study derives from the training HDRIs."""
+"""The ground method's sky gains are the ones the study derives from the training HDRIs."""
 
 import pytest
 
@@ -6,10 +6,23 @@ pytest.importorskip("bpy", reason="the HDRIs ship with the bpy module")
 
 from study import sky_prior  # noqa: E402
 from virtual_reflections import Params  # noqa: E402
+from virtual_reflections.params import SKY_GAINS  # noqa: E402
 
 
-def test_the_default_sky_gain_is_the_studys(capsys):
-    chosen = sky_prior.run()
-    assert Params().sky_gain == pytest.approx(chosen)
+def test_the_sky_gains_are_the_studys(capsys):
+    chosen = sky_prior.run(kinds=True)
+    assert Params().sky_gain == pytest.approx(chosen["auto"])
+    assert chosen.keys() == SKY_GAINS.keys()
+    for kind, gain in SKY_GAINS.items():
+        assert gain == pytest.approx(chosen[kind]), kind
+    # the kinds order as their names say: open sky brighter than knowing nothing, enclosed darker
+    assert SKY_GAINS["enclosed"] < SKY_GAINS["auto"] < SKY_GAINS["open"]
     table = capsys.readouterr().out
     assert "held out" in table and table.count("| yes |") == len(sky_prior.TRAIN)
+    # the held-out HDRIs are all open skies: the open gain predicts them better than auto's
+    assert "| open | city, sunrise, sunset |" in table
+    for line in table.splitlines():
+        if line.startswith("| open |"):
+            for check in line.split("|")[4].split(","):
+                ours, auto = (float(v) for v in check.split()[-3::2])
+                assert ours < auto, check

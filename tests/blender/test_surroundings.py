@@ -1,0 +1,98 @@
+"""Surroundings (Camera View + Ground): what the artist says of the shot sets how bright the
+sky the plate does not show is taken to be (virtual_reflections.params.SKY_GAINS), in the
+map and per frame, from the panel's setting and from the batch's --surroundings.
+
+The camera looks 35 degrees down at a grey ground, so the plate shows no sky: straight up
+from the ball the map holds the sky prior alone, a neutral grey `gain` times the plate's
+level, and the ground below it stays the plate's.
+"""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from shots import addon_part, ground_plate
+
+W, H = 160, 90
+GROUND = (0.18, 0.15, 0.12)
+
+
+def make_shot():
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, -5.0, 3.0)
+    cam.rotation_euler = (math.radians(90 - 35), 0.0, 0.0)  # looks along +Y, 35 deg down
+    cam.data.lens = 50.0  # 22 degrees high: the frame's top edge is 24 degrees below the horizon
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, -0.8, 0.5))
+    ball = bpy.context.active_object
+    ball.name = "Ball"
+    settings = scene.virtual_reflections
+    settings.method = "GROUND"
+    settings.combine = "WORLD"
+    settings.resolution = "256"
+    settings.plate_image = ground_plate(
+        scene, 0.0, lambda x, y: np.broadcast_to(np.array(GROUND), (*x.shape, 3)), (1, 0, 1)
+    )
+    return scene, ball
+
+
+def up_and_ahead(scene, ball):
+    """The map's mean colour within 20 degrees of straight up, and within 3 degrees of the
+    direction toward the ground 3 m ahead of the ball (in view, out of its contact shadow)."""
+    report = addon_part("operators.generate").generate(
+        scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
+    assert report.done == ["Ball"], report.warnings
+    image = addon_part("operators.shading").map_of(ball)
+    pixels = addon_part("operators.images").read_pixels(image)[..., :3]
+    bounds = addon_part("operators.bounds")
+    projection = bounds.camera_projection(scene)
+    up = np.array(bounds.to_engine_frame(projection, vector=(0, 0, 1)))
+    ahead = np.subtract(
+        bounds.to_engine_frame(projection, point=(0.0, 2.2, 0.0)),
+        bounds.to_engine_frame(projection, point=tuple(ball.location)),
+    )
+    ahead /= np.linalg.norm(ahead)
+    h, w = pixels.shape[:2]
+    lat = math.pi * (0.5 - (np.arange(h) + 0.5) / h)
+    lon = 2 * math.pi * ((np.arange(w) + 0.5) / w - 0.5)
+    lon, lat = np.meshgrid(-lon, lat)
+    d = np.stack([np.cos(lat) * np.sin(lon), np.sin(lat), np.cos(lat) * np.cos(lon)], -1)
+    near_up = d @ up > math.cos(math.radians(20))
+    near_ahead = d @ ahead > math.cos(math.radians(3))
+    return pixels[near_up].mean(0), pixels[near_ahead].mean(0)
+
+
+def test_the_named_surroundings_set_the_unseen_sky(addon):
+    gains = addon_part("virtual_reflections.params").SKY_GAINS
+    scene, ball = make_shot()
+    assert scene.virtual_reflections.surroundings == "AUTO"
+    sky, ground = {}, {}
+    for kind in ("AUTO", "OPEN", "ENCLOSED"):
+        scene.virtual_reflections.surroundings = kind
+        sky[kind], ground[kind] = up_and_ahead(scene, ball)
+    for kind, colour in sky.items():
+        assert np.ptp(colour) < 0.02 * colour.mean(), (kind, colour)  # a neutral grey
+        ratio = colour.mean() / sky["AUTO"].mean()
+        assert ratio == pytest.approx(gains[kind.lower()] / gains["auto"], rel=0.02), kind
+        # the ground the plate shows is the plate's, whatever the sky
+        np.testing.assert_allclose(ground[kind], GROUND, atol=0.03)
+    assert sky["ENCLOSED"].mean() < sky["AUTO"].mean() < sky["OPEN"].mean()
+
+
+def test_the_batch_option_sets_the_surroundings(addon):
+    """--surroundings reaches the scene's setting; a word it does not know is refused."""
+    options = addon_part("operators.batch_options")
+    render = addon_part("operators.batch_render")
+    scene, _ = make_shot()
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="open"))
+    assert scene.virtual_reflections.surroundings == "OPEN"
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o"))
+    assert scene.virtual_reflections.surroundings == "OPEN"  # not given: the shot's own
+    with pytest.raises(ValueError, match="--surroundings must be auto, open or enclosed"):
+        options.BatchOptions(plate="p.exr", out="o", surroundings="outdoors")
