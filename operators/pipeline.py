@@ -21,6 +21,7 @@ import numpy as np
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table
+from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.params import SKY_GAINS
 from ..virtual_reflections.prefilter import prefilter_latlong
 from . import bounds, plate, shading
@@ -141,6 +142,22 @@ def view(scene, plate_shape, depsgraph=None) -> View:
         params(scene.virtual_reflections, projection.intrinsics(sx, sy)),
         shape,
     )
+
+
+def camera_sky(scene) -> float | None:
+    """The share of the camera's frame rows that reach above the world's horizon (engine
+    fill.sky_in_view): 0 when the camera sees no sky, so Camera View + Ground's sky is its
+    prior alone and naming the Surroundings matters most. None without a usable perspective
+    camera."""
+    try:
+        projection = bounds.camera_projection(scene)
+    except ValueError:
+        return None
+    intrinsics = projection.intrinsics(1.0, 1.0)
+    if intrinsics is None:
+        return None
+    up = bounds.to_engine_frame(projection, vector=(0.0, 0.0, 1.0))
+    return sky_in_view(intrinsics, projection.width, projection.height, up)
 
 
 def ground_height(scene, depsgraph, objects) -> float:

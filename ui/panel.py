@@ -9,7 +9,17 @@ import textwrap
 
 import bpy
 
-from ..operators import compositor, generate, live, maps, plate, previews, sequence, shading
+from ..operators import (
+    compositor,
+    generate,
+    live,
+    maps,
+    pipeline,
+    plate,
+    previews,
+    sequence,
+    shading,
+)
 from . import presets
 
 
@@ -145,6 +155,13 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         if settings.method == "GROUND":
             col.prop(settings, "ground_object")
             col.prop(settings, "surroundings")
+            if settings.surroundings == "AUTO" and pipeline.camera_sky(context.scene) == 0:
+                _wrapped(
+                    col,
+                    "The camera sees no sky: name the Surroundings if you know them",
+                    context,
+                    icon="INFO",
+                )
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

@@ -58,6 +58,22 @@ def elevation_deg(directions, up=None) -> np.ndarray:
     return np.degrees(np.arcsin(np.clip(height / norm, -1.0, 1.0)))
 
 
+def sky_in_view(intrinsics, width: int, height: int, up) -> float:
+    """The share of the plate's rows, 0..1, whose highest point is above the horizon whose
+    normal is ``up`` (camera frame): 0 when the camera sees no sky at all (ground and walls
+    only), where the fill's sky is the prior alone (`fill_profile`'s ``sky_gain``). Along a
+    row the elevation is highest at one of its ends, so only the ends are tested."""
+    fx, fy, cx, cy = intrinsics
+    rows = np.arange(height) + 0.5
+    ends = [
+        np.stack((np.full_like(rows, -(x - cx) / fx), -(rows - cy) / fy, np.ones_like(rows)), -1)
+        for x in (0.0, float(width))
+    ]
+    u = np.asarray(up, np.float64)
+    above = (ends[0] @ u > 0) | (ends[1] @ u > 0)
+    return float(above.mean()) if height > 0 else 0.0
+
+
 def fill_geometry(
     shape,
     level: int,

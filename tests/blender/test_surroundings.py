@@ -96,3 +96,54 @@ def test_the_batch_option_sets_the_surroundings(addon):
     assert scene.virtual_reflections.surroundings == "OPEN"  # not given: the shot's own
     with pytest.raises(ValueError, match="--surroundings must be auto, open or enclosed"):
         options.BatchOptions(plate="p.exr", out="o", surroundings="outdoors")
+
+
+class _Layout:
+    """Records what a panel draws: the properties and the labels."""
+
+    def __init__(self):
+        self.props, self.labels = [], []
+
+    def column(self, **_kw):
+        return self
+
+    def prop(self, _data, name, **_kw):
+        self.props.append(name)
+
+    def label(self, text="", **_kw):
+        self.labels.append(text)
+
+
+def _draw_method_panel(scene):
+    panel = addon_part("ui.panel")
+    layout = _Layout()
+    context = type(
+        "Context",
+        (),
+        {
+            "scene": scene,
+            "region": type("Region", (), {"width": 300})(),
+            "preferences": type("P", (), {"system": type("S", (), {"ui_scale": 1.0})()})(),
+            "active_object": None,
+        },
+    )()
+    panel.VR_PT_method.draw(type("Panel", (), {"layout": layout})(), context)
+    return layout
+
+
+def test_the_panel_asks_for_the_surroundings_when_the_camera_sees_no_sky(addon):
+    pipeline = addon_part("operators.pipeline")
+    scene, _ = make_shot()
+    assert pipeline.camera_sky(scene) == 0.0  # 35 degrees down, 22 high: ground only
+    drawn = _draw_method_panel(scene)
+    assert "surroundings" in drawn.props
+    assert any("sees no sky" in text for text in drawn.labels), drawn.labels
+    scene.virtual_reflections.surroundings = "OPEN"  # named: nothing to ask
+    assert not any("sky" in text for text in _draw_method_panel(scene).labels)
+    scene.virtual_reflections.surroundings = "AUTO"
+    scene.camera.rotation_euler = (math.radians(90), 0.0, 0.0)  # level: half the frame is sky
+    bpy.context.view_layer.update()
+    assert pipeline.camera_sky(scene) == pytest.approx(0.5, abs=0.02)
+    assert not any("sky" in text for text in _draw_method_panel(scene).labels)
+    scene.virtual_reflections.method = "CAMERA"  # no ground method: no Surroundings
+    assert "surroundings" not in _draw_method_panel(scene).props

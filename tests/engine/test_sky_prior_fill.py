@@ -1,0 +1,71 @@
+"""The fill's sky where the plate shows none (fill.py): how much of the frame reaches above
+the world's horizon (`sky_in_view`), and the prior the fill blends toward there, `sky_gain`
+times the plate's level, neutral, the ground rows left as the plate shows them."""
+
+import math
+
+import numpy as np
+import pytest
+
+from virtual_reflections import Params, lookup_table
+from virtual_reflections.envmap import apply_table
+from virtual_reflections.fill import sky_in_view
+from virtual_reflections.params import SKY_GAINS
+
+W, H = 160, 90
+F = 0.5 * W / math.tan(math.radians(30))  # 60 degrees across, 36 high
+INTRINSICS = (F, F, W / 2, H / 2)
+
+
+def up_when_pitched(deg):
+    """The world's up in the engine's camera frame (+Y up, +Z ahead) for a camera pitched
+    ``deg`` down (negative: up)."""
+    a = math.radians(deg)
+    return (0.0, math.cos(a), -math.sin(a))
+
+
+@pytest.mark.parametrize(
+    "pitch, expected",
+    [(0.0, 0.5), (-25.0, 1.0), (25.0, 0.0), (10.0, (H / 2 - F * math.tan(math.radians(10))) / H)],
+)
+def test_the_share_of_rows_that_see_sky(pitch, expected):
+    share = sky_in_view(INTRINSICS, W, H, up_when_pitched(pitch))
+    assert share == pytest.approx(expected, abs=1.5 / H)
+
+
+def test_a_rolled_camera_sees_sky_in_a_corner():
+    """Looking 20 degrees down (no sky on a level frame) but rolled 30 degrees: the top
+    corner on the raised side reaches above the horizon, so some rows see sky."""
+    a, r = math.radians(20), math.radians(30)
+    level = np.array([0.0, math.cos(a), -math.sin(a)])
+    rolled = (level[0] * math.cos(r) - level[1] * math.sin(r),
+              level[0] * math.sin(r) + level[1] * math.cos(r), level[2])  # fmt: skip
+    assert sky_in_view(INTRINSICS, W, H, level) == 0.0
+    assert 0.0 < sky_in_view(INTRINSICS, W, H, rolled) < 0.5
+
+
+def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
+    """A plate of ground only (a camera 30 degrees down): straight up, the map is a neutral
+    grey in proportion to the gain; toward the plate's centre it is the plate."""
+    rng = np.random.default_rng(3)
+    plate = (0.2 + 0.05 * rng.random((H, W, 3))).astype(np.float32)
+    plate[..., 0] *= 1.3  # a warm ground: the prior stays neutral all the same
+    up = up_when_pitched(30.0)
+    box = (60, 30, 100, 60)
+    sky, ahead = {}, {}
+    for kind, gain in SKY_GAINS.items():
+        params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_gain=gain)
+        env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
+        h, w = env.shape[:2]
+        lat = math.pi * (0.5 - (np.arange(h) + 0.5) / h)
+        lon = 2 * math.pi * ((np.arange(w) + 0.5) / w - 0.5)
+        lon, lat = np.meshgrid(-lon, lat)
+        d = np.stack([np.cos(lat) * np.sin(lon), np.sin(lat), np.cos(lat) * np.cos(lon)], -1)
+        sky[kind] = env[d @ np.array(up) > math.cos(math.radians(15))].mean(0)
+        ahead[kind] = env[d[..., 2] > math.cos(math.radians(3))].mean(0)
+    for kind, colour in sky.items():
+        assert np.ptp(colour) < 0.01 * colour.mean(), (kind, colour)
+        ratio = colour.mean() / sky["auto"].mean()
+        assert ratio == pytest.approx(SKY_GAINS[kind] / SKY_GAINS["auto"], rel=0.01), kind
+        np.testing.assert_allclose(ahead[kind], plate.reshape(-1, 3).mean(0), rtol=0.05)
+    assert sky["enclosed"].mean() < sky["auto"].mean() < sky["open"].mean()
