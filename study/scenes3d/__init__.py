@@ -41,7 +41,7 @@ class ScenesInputError(Exception):
 
 
 CASES = ("default", "failures", "inter", "motion", "heldout")
-SURROUNDINGS = ("auto", "open", "enclosed", "artist")  # --surroundings (mirror.surroundings_of)
+SURROUNDINGS = ("auto", "open", "enclosed", "artist")  # --surroundings (run.surroundings_of)
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False,
     ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is);
     ``split``: each scene's error split (`mirror.error_split`: one more render a scene);
     ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed), or
-    "artist": each scene's by the kind of its HDRI (`mirror.surroundings_of`)."""
+    "artist": each scene's by the kind of its HDRI (`run.surroundings_of`)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -191,7 +191,14 @@ def run_study(config: Config, log=None, keep=None):
             )
         else:
             records, crops, methods = run.run_scenes(
-                specs, work, config.width, config.samples, say, config.cases == "failures"
+                specs,
+                work,
+                config.width,
+                config.samples,
+                say,
+                config.cases == "failures",
+                # the artist's Surroundings as a row of its own: the full sets only
+                config.cases in ("default", "heldout") and not config.quick,
             )
     finally:
         if not keep:

@@ -46,19 +46,6 @@ def cache_key(spec: Scene3D, width: int, samples: int) -> str:
     return h.hexdigest()[:16]
 
 
-def surroundings_of(spec: Scene3D, surroundings) -> str | None:
-    """The panel's Surroundings for ``spec`` under the study's ``--surroundings``: None (the
-    add-on's default), "AUTO", "OPEN" or "ENCLOSED"; "artist": the kind of the scene's HDRI
-    (`sky_prior.KINDS`), what an artist would answer looking at the shot."""
-    if surroundings is None:
-        return None
-    if surroundings == "artist":
-        from ..sky_prior import KINDS
-
-        return next(kind for kind, names in KINDS.items() if spec.hdri in names).upper()
-    return surroundings.upper()
-
-
 def run_scene(
     spec: Scene3D,
     addon: run.Addon,
@@ -73,7 +60,7 @@ def run_scene(
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
     method and the plate mean. ``split``: also the default with a black sky prior (one more
     Generate and render), and the record's "split" (`error_split`). ``surroundings``: the
-    panel's Surroundings for it (`surroundings_of`)."""
+    panel's Surroundings for it (`run.surroundings_of`)."""
     started = time.perf_counter()
     run.new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -114,7 +101,7 @@ def run_scene(
     settings.resolution = "AUTO"
     settings.method = scene.virtual_reflections.bl_rna.properties["method"].default
     settings.combine = "REPLACE"
-    kind = surroundings_of(spec, surroundings)
+    kind = run.surroundings_of(spec, surroundings)
     if kind is not None:
         settings.surroundings = kind
     subject.virtual_reflections.enabled = True
@@ -218,7 +205,7 @@ def run_scenes(specs, cache, work, width, samples, log, gain=None, split=False, 
     """Every scene's mirror in turn; returns (records, crops, [the default method's label]).
     ``gain``: the sky prior's gain for this run (None: the add-on's default); ``split``: each
     record's error split (`error_split`); ``surroundings``: the panel's Surroundings set in
-    each scene (`surroundings_of`; a ``gain`` overrides it)."""
+    each scene (`run.surroundings_of`; a ``gain`` overrides it)."""
     addon = run.Addon()
     records, crops = [], {}
     try:

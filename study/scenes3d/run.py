@@ -27,6 +27,7 @@ from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
 
 from ..evaluate.metrics import psnr, si_rmse, ssim, to_display
+from ..sky_prior import KINDS
 from . import build
 from .scenes import Scene3D
 
@@ -48,6 +49,7 @@ PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
 BASELINES = (PROBE, STRETCHED, MEAN)
 METRICS = ("psnr", "ssim", "si_rmse")
 GROUND_CHOSEN = "Camera View + Ground (ground chosen)"
+NAMED = "Camera View + Ground (surroundings named)"  # the artist's: surroundings_of
 
 
 class Addon:
@@ -140,10 +142,13 @@ def run_scene(
     samples: int,
     log,
     ground_chosen: bool = False,
+    named: bool = False,
 ):
     """One scene: renders, Generate per method, scores. Returns (record, mirror crops).
     ``ground_chosen``: also Camera View + Ground with the ground plane chosen as the scene's
-    Ground object (the method row GROUND_CHOSEN)."""
+    Ground object (the method row GROUND_CHOSEN); ``named``: also Camera View + Ground with
+    the scene's Surroundings named as an artist would, by the kind of its HDRI (the row
+    NAMED, `surroundings_of`)."""
     started = time.perf_counter()
     new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -205,9 +210,12 @@ def run_scene(
     methods = list(addon.methods)
     if ground_chosen:  # the ground plane picked as the Ground object (the failure cases)
         methods.append(("GROUND", GROUND_CHOSEN))
+    if named:
+        methods.append(("GROUND", NAMED))
     for ident, label in methods:
         settings.method = ident
         settings.ground_object = others[0] if label == GROUND_CHOSEN else None
+        settings.surroundings = surroundings_of(spec, "artist") if label == NAMED else "AUTO"
         times[label] = {}
         # One Generate per look; in the Mix look one per roughness (the map is pre-filtered
         # for the material's roughness, read at Generate).
@@ -237,6 +245,7 @@ def run_scene(
             addon.generate.remove_all()
             build.set_roughness(material, 0.0)
     settings.ground_object = None
+    settings.surroundings = "AUTO"
 
     # scores on the subject's pixels
     mask = alone["mirror"][PROBE][..., 3] > 0.5
@@ -273,27 +282,48 @@ def run_scene(
     return record, crops
 
 
+def surroundings_of(spec: Scene3D, surroundings) -> str | None:
+    """The panel's Surroundings for ``spec`` under the study's ``--surroundings``: None (the
+    add-on's default), "AUTO", "OPEN" or "ENCLOSED"; "artist": the kind of the scene's HDRI
+    (`sky_prior.KINDS`), what an artist would answer looking at the shot."""
+    if surroundings is None:
+        return None
+    if surroundings == "artist":
+        return next(kind for kind, names in KINDS.items() if spec.hdri in names).upper()
+    return surroundings.upper()
+
+
 def default_method_label(addon: Addon) -> str:
     """The label of the add-on's default method (the Scene setting's default)."""
     ident = bpy.context.scene.virtual_reflections.bl_rna.properties["method"].default
     return dict(addon.methods)[ident]
 
 
-def run_scenes(specs, work, width, samples, log, ground_chosen=False):
+def run_scenes(specs, work, width, samples, log, ground_chosen=False, named=False):
     """Every scene in turn; the add-on is registered once and unregistered at the end.
-    ``ground_chosen``: add the GROUND_CHOSEN method row (after the add-on's default)."""
+    ``ground_chosen``: add the GROUND_CHOSEN method row (after the add-on's default);
+    ``named``: the NAMED row (after the add-on's default)."""
     addon = Addon()
     records, crops = [], {}
     try:
         for spec in specs:
             record, scene_crops = run_scene(
-                spec, addon, pathlib.Path(work) / spec.name, width, samples, log, ground_chosen
+                spec,
+                addon,
+                pathlib.Path(work) / spec.name,
+                width,
+                samples,
+                log,
+                ground_chosen,
+                named,
             )
             records.append(record)
             crops[spec.name] = scene_crops
         methods = [label for _, label in addon.methods]
         if ground_chosen:
             methods.insert(1 + methods.index(default_method_label(addon)), GROUND_CHOSEN)
+        if named:
+            methods.insert(1 + methods.index(default_method_label(addon)), NAMED)
     finally:
         new_file()
         addon.close()
