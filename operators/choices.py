@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import bpy
 
 from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
+from ..virtual_reflections.params import SKY_GAINS
 
 ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
 
@@ -50,19 +51,20 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
         "AUTO",
         "Auto",
         "Nothing said of the shot: where the photo shows no sky, the sky is taken as a neutral "
-        "grey 1.6 times the photo's brightness (learnt from six HDRIs of every kind)",
+        f"grey {SKY_GAINS['auto']:g} times the photo's brightness (learnt from HDRIs of every "
+        "kind)",
     ),
     (
         "OPEN",
         "Open Sky",
         "Outdoors, the sky over most of what stands around (streets, fields, a sunset): the "
-        "unseen sky is taken brighter, 3.6 times the photo's brightness",
+        f"unseen sky is taken brighter, {SKY_GAINS['open']:g} times the photo's brightness",
     ),
     (
         "ENCLOSED",
         "Enclosed",
         "A room, a studio or a yard walled in by buildings: what is above and behind the camera "
-        "is taken darker, 0.7 times the photo's brightness",
+        f"is taken darker, {SKY_GAINS['enclosed']:g} times the photo's brightness",
     ),
 )
 FRONT_ITEMS = (

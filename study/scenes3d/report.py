@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import pathlib
 import re
+import textwrap
 
 import numpy as np
 
@@ -153,11 +154,19 @@ def chart_pareto(data, path) -> None:
     plt = _plt()
     s = summary(data)
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    for method in data["addon_methods"]:
-        t = 1000 * s["generate_s"][method]["REPLACE"]
+    times = [1000 * s["generate_s"][m]["REPLACE"] for m in data["addon_methods"]]
+    right = 1.3 * max(times, default=1.0)
+    for method, t in zip(data["addon_methods"], times):
         p = s["materials"]["mirror"][method]["psnr"]
         ax.plot([t], [p], "o", ms=8)
-        ax.annotate(method, (t, p), textcoords="offset points", xytext=(6, 4))
+        left = t > 0.5 * right  # a label that would run off the chart goes to the point's left
+        ax.annotate(
+            method,
+            (t, p),
+            textcoords="offset points",
+            xytext=(-6 if left else 6, 4),
+            ha="right" if left else "left",
+        )
     styles = {PROBE: ":", "Plate stretched": "-.", MEAN: "--"}
     for baseline in BASELINES:
         ax.axhline(
@@ -166,8 +175,7 @@ def chart_pareto(data, path) -> None:
             color="grey",
             label=f"{baseline} (no Generate)",
         )
-    times = [1000 * s["generate_s"][m]["REPLACE"] for m in data["addon_methods"]]
-    ax.set_xlim(0, 1.3 * max(times, default=1.0))
+    ax.set_xlim(0, right)
     ax.set_xlabel("Generate time, one object, mirror (ms, median over scenes)")
     ax.set_ylabel("mirror subject: mean PSNR (dB)")
     ax.set_title(f"3D scenes ({s['scenes']}): accuracy against time")
@@ -208,7 +216,10 @@ def contact_sheet(data, crops, path, names=None) -> None:
         m = scores[name][column]
         return f"{m['psnr']:.1f} dB / {m['ssim']:.2f}", 7
 
-    _image_grid(crops, names, columns, (1.9, 1.9, 0.3), (lambda c: c, 8), label, path)
+    def title(column):  # long method names on two lines: the columns are 1.9 inches wide
+        return "\n".join(textwrap.wrap(column, 24))
+
+    _image_grid(crops, names, columns, (1.9, 1.9, 0.3), (title, 8), label, path)
 
 
 def _image_grid(crops, names, columns, cell, title, label, path) -> None:
