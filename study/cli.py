@@ -155,7 +155,7 @@ def main(argv=None) -> int:
         elif args.command == "sky-prior":
             from .sky_prior import run as run_sky_prior
 
-            run_sky_prior(kinds=True)
+            run_sky_prior()
         else:
             from .bench import run_bench, run_sweep
 

@@ -57,38 +57,33 @@ def errors(image) -> np.ndarray:
     return np.array(out)
 
 
-def best_gain(per: dict, names) -> float:
-    """The gain minimising the summed error over the HDRIs ``names`` of ``per``."""
-    total = sum(per[name] for name in names if name in per)
-    return float(GAINS[int(np.argmin(total))])
+def best_index(per: dict, names) -> int:
+    """The index in GAINS of the gain minimising the summed error over the HDRIs ``names``."""
+    return int(np.argmin(sum(per[name] for name in names if name in per)))
 
 
-def run(kinds: bool = False):
-    """Print the table; returns the gain chosen on the training HDRIs (with ``kinds``:
-    {"auto": it, "open": .., "enclosed": ..}, each kind's gain from its training HDRIs)."""
+def run() -> dict:
+    """Print the tables; returns the gains: {"auto": the one chosen on the training HDRIs,
+    "open": .., "enclosed": ..: each kind's from its training HDRIs}."""
     per = {p.stem: errors(load_equirect(str(p))) for p in sorted(hdri_dir().glob("*.exr"))}
-    total = sum(e for name, e in per.items() if name in TRAIN)
-    chosen = float(GAINS[int(np.argmin(total))])
+    at = best_index(per, TRAIN)
     one = int(np.argmin(np.abs(GAINS - 1.0)))
-    at = int(np.argmin(total))
-    print(f"gain minimising the summed error over {', '.join(TRAIN)}: {chosen:.1f}")
+    out = {"auto": float(GAINS[at])}
+    print(f"gain minimising the summed error over {', '.join(TRAIN)}: {out['auto']:.1f}")
     print("| HDRI | used | own best gain | error at the chosen gain | error at 1.0 |")
     print("|---|---|---|---|---|")
     for name, e in per.items():
         used = "yes" if name in TRAIN else "held out"
         best = float(GAINS[int(np.argmin(e))])
         print(f"| {name} | {used} | {best:.1f} | {e[at]:.3f} | {e[one]:.3f} |")
-    if not kinds:
-        return chosen
-    out = {"auto": chosen}
     print()
     print("| surroundings | trained on | gain | held out: error at it / at the all-HDRI gain |")
     print("|---|---|---|---|")
     for kind, names in KINDS.items():
         train = [n for n in names if n in TRAIN]
-        gain = out[kind] = best_gain(per, train)
-        k = int(np.argmin(np.abs(GAINS - gain)))
+        k = best_index(per, train)
+        out[kind] = float(GAINS[k])
         held = [n for n in names if n not in TRAIN and n in per]
         checks = ", ".join(f"{n} {per[n][k]:.3f} / {per[n][at]:.3f}" for n in held) or "none"
-        print(f"| {kind} | {', '.join(train)} | {gain:.1f} | {checks} |")
+        print(f"| {kind} | {', '.join(train)} | {out[kind]:.1f} | {checks} |")
     return out

@@ -12,7 +12,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from shots import addon_part, ground_plate
+from shots import add_camera, addon_part, ground_plate
 
 W, H = 160, 90
 GROUND = (0.18, 0.15, 0.12)
@@ -20,14 +20,10 @@ GROUND = (0.18, 0.15, 0.12)
 
 def make_shot():
     scene = bpy.context.scene
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    cam = add_camera(scene, size=(W, H))
     cam.location = (0.0, -5.0, 3.0)
     cam.rotation_euler = (math.radians(90 - 35), 0.0, 0.0)  # looks along +Y, 35 deg down
     cam.data.lens = 50.0  # 22 degrees high: the frame's top edge is 24 degrees below the horizon
-    scene.render.resolution_x, scene.render.resolution_y = W, H
-    scene.render.resolution_percentage = 100
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, -0.8, 0.5))
     ball = bpy.context.active_object
     ball.name = "Ball"

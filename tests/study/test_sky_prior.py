@@ -10,7 +10,7 @@ from virtual_reflections.params import SKY_GAINS  # noqa: E402
 
 
 def test_the_sky_gains_are_the_studys(capsys):
-    chosen = sky_prior.run(kinds=True)
+    chosen = sky_prior.run()
     assert Params().sky_gain == pytest.approx(chosen["auto"])
     assert chosen.keys() == SKY_GAINS.keys()
     for kind, gain in SKY_GAINS.items():
