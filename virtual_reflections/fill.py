@@ -69,8 +69,7 @@ def sky_in_view(intrinsics, width: int, height: int, up) -> float:
         np.stack((np.full_like(rows, -(x - cx) / fx), -(rows - cy) / fy, np.ones_like(rows)), -1)
         for x in (0.0, float(width))
     ]
-    u = np.asarray(up, np.float64)
-    above = (ends[0] @ u > 0) | (ends[1] @ u > 0)
+    above = (elevation_deg(ends[0], up) > 0) | (elevation_deg(ends[1], up) > 0)
     return float(above.mean()) if height > 0 else 0.0
 
 

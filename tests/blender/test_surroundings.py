@@ -54,11 +54,7 @@ def up_and_ahead(scene, ball):
         bounds.to_engine_frame(projection, point=tuple(ball.location)),
     )
     ahead /= np.linalg.norm(ahead)
-    h, w = pixels.shape[:2]
-    lat = math.pi * (0.5 - (np.arange(h) + 0.5) / h)
-    lon = 2 * math.pi * ((np.arange(w) + 0.5) / w - 0.5)
-    lon, lat = np.meshgrid(-lon, lat)
-    d = np.stack([np.cos(lat) * np.sin(lon), np.sin(lat), np.cos(lat) * np.cos(lon)], -1)
+    d = addon_part("virtual_reflections.layouts").texel_directions("latlong", pixels.shape[1])
     near_up = d @ up > math.cos(math.radians(20))
     near_ahead = d @ ahead > math.cos(math.radians(3))
     return pixels[near_up].mean(0), pixels[near_ahead].mean(0)

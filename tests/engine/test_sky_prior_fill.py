@@ -10,6 +10,7 @@ import pytest
 from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.fill import sky_in_view
+from virtual_reflections.layouts import texel_directions
 from virtual_reflections.params import SKY_GAINS
 
 W, H = 160, 90
@@ -56,11 +57,7 @@ def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
     for kind, gain in SKY_GAINS.items():
         params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_gain=gain)
         env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
-        h, w = env.shape[:2]
-        lat = math.pi * (0.5 - (np.arange(h) + 0.5) / h)
-        lon = 2 * math.pi * ((np.arange(w) + 0.5) / w - 0.5)
-        lon, lat = np.meshgrid(-lon, lat)
-        d = np.stack([np.cos(lat) * np.sin(lon), np.sin(lat), np.cos(lat) * np.cos(lon)], -1)
+        d = texel_directions("latlong", env.shape[1])
         sky[kind] = env[d @ np.array(up) > math.cos(math.radians(15))].mean(0)
         ahead[kind] = env[d[..., 2] > math.cos(math.radians(3))].mean(0)
     for kind, colour in sky.items():
