@@ -6,9 +6,9 @@ same lat-long from cube faces with the fastest back end it finds (OpenCV's `rema
 installed, else SciPy's `map_coordinates`; the line says which), and beside them the bandwidth
 floor: one copy of the plate. Repetitions are interleaved, so all see the same machine load;
 the ratio ours / peer is what we hold ourselves to. Ours is measured with both back ends
-(virtual_reflections/opencv.py): OpenCV's remap/resize when cv2 imports (the default then),
-and NumPy (VR_GATHER=numpy, what Blender runs: it does not bundle OpenCV); the line says
-which one the engine uses by default here.
+(virtual_reflections/backends.py), each that imports: Numba's compiled kernels (the default
+then), OpenCV's remap/resize, and NumPy (VR_GATHER=numpy, what Blender runs: it bundles
+neither); the line says which one the engine uses by default here.
 
 Cold tables (new bounds or camera): building the table from a 3840x2160 plate for 2048 and
 4096 wide lat-longs, its time, its bytes per texel and the peak memory while building
@@ -29,10 +29,10 @@ import tracemalloc
 
 import numpy as np
 
+from virtual_reflections.backends import available_backends, backend
 from virtual_reflections.cache import nbytes
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.mipmap import pyramid_size
-from virtual_reflections.opencv import backend
 from virtual_reflections.params import Params
 from virtual_reflections.segmentation import segment
 from virtual_reflections.table import build_table
@@ -133,17 +133,25 @@ def run_bench(repeat: int = 15) -> dict:
     figures = {}
     plate = _plate()
     default = backend()
-    engines = ["opencv", "numpy"] if default == "opencv" else ["numpy"]
-    print(f"engine back end: {default} by default (VR_GATHER=numpy forces NumPy)")
-    print(f"\nper frame (table cached): {PLATE_W}x{PLATE_H} plate, medians of {repeat}")
     forced = os.environ.get("VR_GATHER")
+    engines = [default] if forced else available_backends()
+    print(
+        f"engine back end: {default} by default, of {', '.join(available_backends())} "
+        "(VR_GATHER=numba|opencv|numpy picks one)"
+    )
+    print(f"\nper frame (table cached): {PLATE_W}x{PLATE_H} plate, medians of {repeat}")
     for size in (1024, 2048):
         tables = {m: _table(m, PLATE_W, PLATE_H, size) for m in METHODS}
         calls = {  # (VR_GATHER for the call, the call)
-            f"ours {m} {e}": ("numpy" if e == "numpy" else "", lambda t=t: apply_table(t, plate))
+            f"ours {m} {e}": (e, lambda t=t: apply_table(t, plate))
             for m, t in tables.items()
             for e in engines
         }
+        for t in tables.values():  # a first call: the compiled kernels loaded
+            for e in engines:
+                _set_gather(e)
+                apply_table(t, plate)
+        _set_gather(forced)
         if p360 is not None:
             calls["peer"] = (forced, _peer_call(p360, plate, size))
         calls["plate copy"] = (forced, plate.copy)

@@ -13,11 +13,11 @@ import threading
 
 import numpy as np
 
+from .backends import backend, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
 from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
-from .opencv import backend
 from .parallel import CHUNK, for_blocks
 from .params import Params
 from .supersample import gather as gather_supersample
@@ -56,8 +56,9 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             f"{seg.width}x{seg.height}"
         )
     first = table.first_level
-    # With OpenCV, the paper's table reads level 0 from the plate itself (no border: its
-    # remaps repeat the edge), so the pyramid need not copy it.
+    # With OpenCV or Numba, the paper's table reads level 0 from the plate itself (no
+    # border: their reads repeat the edge), so the pyramid need not copy it.
+    use = backend()
     direct = (
         first == 0
         and table.levels > 1
@@ -66,7 +67,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
         and table.supersample is None
         and not table.groups
         and table.fill is None
-        and backend() == "opencv"
+        and use != "numpy"
     )
     if direct:
         first = 1
@@ -108,7 +109,10 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
             fill_values(mine, side, lookup, out[texels])
 
-        if steps.size == table.shape[0]:  # one step per row: one matrix product
+        if use == "numba":  # one compiled pass over the map
+            none = np.zeros(0, np.float32)
+            run(kernels().fill_rows, steps, none if side is None else side, lookup, width, out)
+        elif steps.size == table.shape[0]:  # one step per row: one matrix product
             fill_values(steps, side, lookup, out)
         else:
             # (blocks of 8192 texels took twice as long on a 4096-wide map: the pool's cost)
@@ -130,6 +134,10 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
 def _gather(source, texels, index, weight, out) -> None:
     """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
+    if backend() == "numba":
+        every = np.zeros(0, np.int64) if texels is None else texels
+        run(kernels().weighted_rows, source, index, weight, every, out)
+        return
     buffer = _scratch("taps", index.shape + (3,))
 
     def gather(a, b):  # one block of texels: its taps, then their weighted sum

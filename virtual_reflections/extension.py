@@ -4,7 +4,8 @@ Within `Params.extend_fade` degrees of the plate's view a texel is the plate's e
 and extended (one trilinear sample of the mip pyramid), faded into the fill by a weight that
 falls from 1 at the view's edge to 0 at the reach. The fill is written over every texel
 before (fill.fill_values on a lat-long, the fill's taps on a cube), so the extension
-keeps only its trilinear samples (trilinear.py: 14 bytes a texel, read by NumPy or OpenCV)
+keeps only its trilinear samples (trilinear.py: 14 bytes a texel, read by NumPy, OpenCV or
+Numba)
 and its weight; per frame, out = fill + weight (extension - fill). Without a fill
 (extend_fade None) there is no weight: the extension alone.
 """
@@ -16,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .backends import backend, kernels, run
 from .taps import put_rows, take_rows
-from .trilinear import ROW, Trilinear, gather_runs, trilinear_samples
+from .trilinear import ROW, Trilinear, compiled_args, gather_runs, trilinear_samples
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +79,17 @@ def extension(texels, px, py, lod, top: int, weight=None) -> Extension | None:
 def apply(ext: Extension, source, shapes, offsets, out) -> None:
     """out[texels] (out: (T, 3) float32, the fill already written there) = the extension
     read from the flat bordered pyramid `source`, faded into the fill by its weight."""
+    if backend() == "numba":  # one compiled pass: sample, fade, write
+        x, y, upper, shares, geometry, source, plate = compiled_args(
+            ext.samples, source, shapes, offsets
+        )
+        counts = np.asarray(ext.counts, np.int64)
+        done = np.concatenate(([0], np.cumsum(counts)))
+        weight = np.zeros(0, np.float32) if ext.weight is None else ext.weight
+        firsts = np.asarray(ext.samples.starts[:-1], np.int64)
+        run(kernels().extension_runs, x, y, upper, shares, firsts, counts, done, geometry,
+            ext.texels, weight, source, plate, out)  # fmt: skip
+        return
     values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
     done = 0
     for r, count in enumerate(ext.counts):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .opencv import backend, cv2
+from .backends import cv2, kernels, pyramid_backend, run
 from .parallel import for_blocks
 
 
@@ -45,7 +45,11 @@ def _halve(src: np.ndarray, dst: np.ndarray) -> None:
     """
     h, w, _ = src.shape
     half = dst.shape[0]
-    if backend() == "opencv" and h > 1 and w > 1:
+    use = pyramid_backend()
+    if use == "numba":  # the same arithmetic, compiled: one pass
+        run(kernels().halve, src, dst)
+        return
+    if use == "opencv" and h > 1 and w > 1:
         _halve_opencv(src, dst)
         return
 
@@ -140,7 +144,11 @@ def _blocks(src: np.ndarray, dst: np.ndarray, k: int) -> None:
     k): OpenCV's area resize, or k rows summed and scaled by 1 / k^2 (exact), then k
     columns added channel by channel, in blocks of rows over the cores (as `_halve`)."""
     h, w, _ = src.shape
-    if backend() == "opencv":
+    use = pyramid_backend()
+    if use == "numba":
+        run(kernels().block_means, src, dst, k)
+        return
+    if use == "opencv":
         cv2().resize(src, (w // k, h // k), dst=dst, interpolation=cv2().INTER_AREA)
         return
 

@@ -10,7 +10,7 @@ within a run the level, its row length and its offset in the flat pyramid are nu
 arrays; `rank` (two int16) takes the runs' results back to map order. With the rank: 14
 bytes per texel.
 
-Two back ends give the same samples (`gather`):
+Three back ends give the same samples (`gather`; backends.py picks one):
 
 - NumPy (always there): per block of a run, the 8 rows and weights are worked out and read
   with one `take` and a weighted sum.
@@ -20,6 +20,9 @@ Two back ends give the same samples (`gather`):
   bilinear weights are rounded to 1/32 of a pixel (INTER_BITS = 5): it differs from NumPy's
   by at most 1/32 of the largest step between neighbouring pixels
   (tests/engine/test_compact_samples.py measures it).
+- Numba (optional, used first when `numba` imports): one compiled pass over the map's texels,
+  each read at its row of the runs with the NumPy path's weights (kernels.py); level 0 may be
+  the plate itself, as for OpenCV.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .opencv import backend, cv2
+from .backends import backend, cv2, kernels, run
 from .parallel import for_blocks
 from .taps import weighted_sum
 
@@ -193,10 +196,16 @@ def _each(fn, count):
 
 def gather(samples: Trilinear, source, shapes, offsets, out, use=None, plate=None) -> None:
     """out (T, 3) float32 = the samples read from the flat bordered pyramid `source` (levels
-    of `shapes` at row `offsets`), with `use` ("numpy", "opencv"; default `backend()`).
-    `plate`: level 0 itself ((H, W, 3) float32, no border), for OpenCV when `source` does
-    not hold level 0 (its remaps read past the edge as the border does: the edge)."""
+    of `shapes` at row `offsets`), with `use` ("numpy", "opencv", "numba"; default
+    `backend()`). `plate`: level 0 itself ((H, W, 3) float32, no border), for OpenCV and
+    Numba when `source` does not hold level 0 (read past the edge as the border: the edge)."""
     use = use or backend()
+    if use == "numba":
+        args = compiled_args(samples, source, shapes, offsets, plate)
+        image = out.reshape(samples.rank.shape[:2] + (3,))
+        starts = np.asarray(samples.starts)
+        run(kernels().trilinear_map, *args[:4], samples.rank, starts, *args[4:], image)
+        return
     values = gather_runs(samples, source, shapes, offsets, use, plate)
     height, width = samples.rank.shape[:2]
     if use == "opencv" and max(height, width) < MAX_ROWS:  # a nearest-pixel remap
@@ -244,6 +253,45 @@ def gather_runs(samples: Trilinear, source, shapes, offsets, use=None, plate=Non
                 samples, a, stop, stride, start, nxt > level, source, values, samples.singles[r]
             )
     return values
+
+
+def compiled_args(samples: Trilinear, source, shapes, offsets, plate=None) -> tuple:
+    """What the compiled kernels (kernels.py) read of `samples`: (x, y, the shares' float16
+    bits, their float32 values by bits, the runs' geometry (runs, 3, 5) int64, the flat
+    pyramid, the plate's rows (or none))."""
+    top = len(shapes) - 1
+    geometry = np.zeros((len(samples.levels), 3, 5), np.int64)
+    for r, level in enumerate(samples.levels):
+        nxt = level if samples.singles[r] else min(level + 1, top)
+        for j, v in enumerate((level, nxt)):
+            h, w = shapes[v]
+            if v == 0 and plate is not None:
+                geometry[r, j] = (0, w, w - 1, h - 1, 1)
+            else:
+                geometry[r, j] = (int(offsets[v]), w + 2, w + 1, h + 1, 0)
+        geometry[r, 2, :2] = (samples.singles[r], nxt > level)
+    rows = np.zeros((0, 3), np.float32) if plate is None else plate_rows(plate)
+    upper = samples.upper.view(np.uint16)
+    return samples.x, samples.y, upper, _shares(), geometry, _source(source), rows
+
+
+def plate_rows(plate) -> np.ndarray:
+    """The plate as (H * W, 3) C-contiguous float32 rows (a view when it is already)."""
+    return np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
+
+
+def _source(source) -> np.ndarray:
+    return np.zeros((0, 3), np.float32) if source is None else source
+
+
+@functools.cache
+def _shares() -> np.ndarray:
+    """(65536,) float32: every float16 share by its bits (the compiled kernels' lookup)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        bits = np.arange(65536, dtype=np.uint32).astype(np.uint16)
+        shares = bits.view(np.float16).astype(np.float32)
+    shares.flags.writeable = False
+    return shares
 
 
 def _level(source, shapes, offsets, level):

@@ -1,16 +1,20 @@
-"""The compact samples (trilinear.py, supersample.py) and the optional OpenCV back end (opencv.py):
+"""The compact samples (trilinear.py, supersample.py) and the optional back ends (backends.py):
 the NumPy path reads what a plain trilinear lookup reads; OpenCV, when installed, gives the
-same map to within its 1/32-pixel weights; VR_GATHER=numpy forces NumPy."""
+same map to within its 1/32-pixel weights, Numba to float32 rounding (test_kernels.py has
+whole maps); VR_GATHER=numpy forces NumPy."""
 
 import numpy as np
 import pytest
 
-from virtual_reflections import opencv
+from virtual_reflections import backends
 from virtual_reflections.mipmap import build_pyramid, level_offsets, level_shapes, level_view
 from virtual_reflections.trilinear import ROW, gather, trilinear_samples
 
 H, W = 45, 70
-needs_cv2 = pytest.mark.skipif(opencv.cv2() is None, reason="OpenCV not installed (optional)")
+needs_cv2 = pytest.mark.skipif(backends.cv2() is None, reason="OpenCV not installed (optional)")
+needs_numba = pytest.mark.skipif(
+    backends.kernels() is None, reason="Numba not installed (optional)"
+)
 
 
 def _plate(seed=3, smooth=False):
@@ -125,16 +129,36 @@ def test_opencv_path_matches_numpy_within_its_weight_rounding(smooth):
     assert psnr > 45, psnr
 
 
+@needs_numba
+@pytest.mark.parametrize("direct", [False, True])
+def test_numba_path_matches_numpy_to_float32_rounding(direct):
+    """The compiled trilinear gather (kernels.py) reads NumPy's taps with NumPy's weights,
+    level 0 from the pyramid or from the plate itself (as envmap reads the paper's)."""
+    px, py, lod = _samples()
+    px[:20], py[:20] = 0.0, np.float32(H)  # on the plate's edges
+    plate = _plate(smooth=True)
+    ref, flat, shapes, samples = _read(plate, px, py, lod, "numpy")
+    fast = np.empty_like(ref)
+    if direct:
+        part = build_pyramid(plate, first=1)
+        gather(samples, part, shapes, level_offsets(shapes, 1), fast, use="numba", plate=plate)
+    else:
+        gather(samples, flat, shapes, level_offsets(shapes), fast, use="numba")
+    assert np.abs(fast - ref).max() < 1e-6
+
+
 def test_vr_gather_numpy_forces_the_numpy_path(monkeypatch):
     monkeypatch.setenv("VR_GATHER", "numpy")
-    assert opencv.backend() == "numpy"
+    assert backends.backend() == "numpy"
     monkeypatch.setenv("VR_GATHER", "")
-    assert opencv.backend() == ("opencv" if opencv.cv2() is not None else "numpy")
+    assert backends.backend() == backends.available_backends()[0]
 
 
-def test_compact_supersamples_read_what_their_taps_read():
+@pytest.mark.parametrize("use", ["numpy", pytest.param("numba", marks=needs_numba)])
+def test_compact_supersamples_read_what_their_taps_read(monkeypatch, use):
     """supersample.py: the same means as seen_texels.mean_taps' rows and weights (positions
-    beyond a level's edge included), at 8 bytes a sample instead of 32."""
+    beyond a level's edge included), at 8 bytes a sample instead of 32; NumPy or compiled."""
+    monkeypatch.setenv("VR_GATHER", use)
     from virtual_reflections.seen_texels import mean_taps
     from virtual_reflections.supersample import gather as gather_supersample
     from virtual_reflections.supersample import supersamples
@@ -189,7 +213,10 @@ def test_opencv_reads_level_0_from_the_plate_as_from_the_pyramid():
     assert np.abs(direct - full).max() < 1e-6
 
 
-@pytest.mark.parametrize("use", ["numpy", pytest.param("opencv", marks=needs_cv2)])
+@pytest.mark.parametrize(
+    "use",
+    ["numpy", pytest.param("opencv", marks=needs_cv2), pytest.param("numba", marks=needs_numba)],
+)
 def test_the_edge_extension_fades_a_trilinear_sample_into_the_fill(monkeypatch, use):
     """extension.py: the texels near the plate's view read one trilinear sample (as the plain
     lookup) faded into the fill already in the map by their weight; without a weight, the
@@ -205,7 +232,7 @@ def test_the_edge_extension_fades_a_trilinear_sample_into_the_fill(monkeypatch, 
     texels = np.sort(rng.permutation(9000)[: px.size])
     weight = rng.random(px.size).astype(np.float32)
     fill = rng.random((9000, 3)).astype(np.float32)
-    tolerance = 2e-3 if use == "numpy" else 1 / 32  # float16 shares; OpenCV's 1/32 pixel
+    tolerance = 1 / 32 if use == "opencv" else 2e-3  # float16 shares; OpenCV's 1/32 pixel
     for share in (weight, None):
         ext = ext_module.extension(texels, px, py, lod, len(shapes) - 1, share)
         out = fill.copy()

@@ -3,16 +3,20 @@
 import numpy as np
 import pytest
 
-from virtual_reflections import Params, lookup_table, opencv
+from virtual_reflections import Params, backends, lookup_table
 from virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
 
 
-@pytest.mark.parametrize("use", ["numpy", "opencv"])
+def _skip_absent(use):
+    if use != "numpy" and use not in backends.available_backends():
+        pytest.skip(f"{use} not installed (optional)")
+
+
+@pytest.mark.parametrize("use", ["numpy", "opencv", "numba"])
 @pytest.mark.parametrize("h, w", [(8, 8), (7, 5), (1, 6), (5, 1), (1, 1), (37, 50), (36, 51)])
 def test_levels_are_2x2_box_filters_with_repeated_edges(h, w, use, monkeypatch):
-    """Both back ends (OpenCV's area resize when installed, VR_GATHER=numpy)."""
-    if use == "opencv" and opencv.cv2() is None:
-        pytest.skip("OpenCV not installed (optional)")
+    """Every back end (OpenCV's area resize, Numba's kernels when installed; NumPy)."""
+    _skip_absent(use)
     monkeypatch.setenv("VR_GATHER", use)
     rng = np.random.default_rng(h * 100 + w)
     plate = rng.random((h, w, 3), dtype=np.float32)
@@ -30,14 +34,13 @@ def test_levels_are_2x2_box_filters_with_repeated_edges(h, w, use, monkeypatch):
     assert np.array_equal(level_view(flat, shapes, 0), plate)
 
 
-@pytest.mark.parametrize("use", ["numpy", "opencv"])
+@pytest.mark.parametrize("use", ["numpy", "opencv", "numba"])
 @pytest.mark.parametrize("h, w", [(37, 50), (40, 48), (64, 96)])
 @pytest.mark.parametrize("first", [2, 3])
 def test_partial_pyramid_holds_the_same_coarse_levels(h, w, first, use, monkeypatch):
     """Level `first` comes straight from the plate when its sides are multiples of
     2^first (the means of 2^first-wide blocks: equal to rounding), else by halving."""
-    if use == "opencv" and opencv.cv2() is None:
-        pytest.skip("OpenCV not installed (optional)")
+    _skip_absent(use)
     monkeypatch.setenv("VR_GATHER", use)
     plate = np.random.default_rng(h + w).random((h, w, 3), dtype=np.float32)
     shapes = level_shapes(h, w)

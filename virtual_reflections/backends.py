@@ -1,0 +1,87 @@
+"""The optional back ends, used when they import: compiled kernels (Numba) and OpenCV.
+
+Blender bundles neither and the extension never requires them: every step they speed up has
+a NumPy path that stays the reference (tests compare them). Which one does what:
+
+- the per-frame gathers and the mip pyramid: Numba's kernels (kernels.py) when `numba`
+  imports (`backend()`);
+- else OpenCV's remap and area resize when `cv2` imports (`pyramid_backend()`: OpenCV
+  halves the pyramid also when VR_GATHER=opencv leaves Numba out);
+- else NumPy.
+
+VR_GATHER=numpy forces NumPy everywhere; VR_GATHER=opencv leaves Numba out; VR_GATHER=numba
+asks for it first (each only when it imports).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+_cv2 = []
+_kernels = []
+_lock = threading.Lock()
+
+
+def cv2():
+    """The cv2 module, or None when it does not import (imported once)."""
+    if not _cv2:
+        try:
+            import cv2 as module  # optional: never required
+        except Exception:  # not installed, or broken: the NumPy path, never an error
+            module = None
+        _cv2.append(module)
+    return _cv2[0]
+
+
+def kernels():
+    """The compiled kernels (kernels.py), or None when Numba does not import (once)."""
+    if not _kernels:
+        try:
+            from . import kernels as module  # imports numba: optional, never required
+        except Exception:  # not installed, or broken: the other back ends, never an error
+            module = None
+        else:
+            import numba
+
+            from .parallel import workers
+
+            numba.set_num_threads(min(workers(), numba.config.NUMBA_NUM_THREADS))
+        _kernels.append(module)
+    return _kernels[0]
+
+
+def _forced() -> str:
+    return os.environ.get("VR_GATHER", "").strip().lower()
+
+
+def backend() -> str:
+    """The gathers' back end: 'numba', 'opencv' or 'numpy' (see the module docstring)."""
+    forced = _forced()
+    if forced == "numpy":
+        return "numpy"
+    if forced != "opencv" and kernels() is not None:
+        return "numba"
+    return "opencv" if cv2() is not None else "numpy"
+
+
+def available_backends() -> list:
+    """The gathers' back ends that import here, fastest first (NumPy always)."""
+    names = ["numba"] if kernels() is not None else []
+    return names + (["opencv"] if cv2() is not None else []) + ["numpy"]
+
+
+def pyramid_backend() -> str:
+    """The pyramid's back end: Numba's when the gathers use it, else OpenCV's area resize
+    when cv2 imports and NumPy is not forced, else NumPy."""
+    use = backend()
+    if use == "numba":
+        return "numba"
+    return "opencv" if _forced() != "numpy" and cv2() is not None else "numpy"
+
+
+def run(kernel, *args) -> None:
+    """Call a compiled kernel, one at a time: Numba's default threading layer must not be
+    entered from two threads at once (it would abort the process)."""
+    with _lock:
+        kernel(*args)

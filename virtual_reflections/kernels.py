@@ -1,0 +1,268 @@
+"""The per-frame gathers compiled with Numba (optional: backends.py imports this module only
+when `numba` imports; Blender bundles it not, and every kernel here has a NumPy path that
+stays the reference).
+
+Each kernel does in one pass, over the cores, what the NumPy path does in several: the same
+taps, the same float32 weights worked out the same way (trilinear.py, supersample.py,
+extension.py, fill.py), summed in float32, so the maps agree with NumPy's to float32
+rounding (tests/engine/test_kernels.py). Reading the taps where they lie instead of copying
+them into a (n, taps, 3) array first is what makes them faster: NumPy's `take` of 12-byte
+rows is about 8 ns a tap, a compiled loop reads them from the cache.
+
+Compiled on first use and cached on disk (Numba's cache, beside this file or in the user's
+cache directory when this one is read-only): the first frame of a new process pays ~0.1 s
+to load them, the first ever ~5 s to compile.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+ONE = np.float32(1.0)
+HALF = np.float32(0.5)
+QUARTER = np.float32(0.25)
+TWO = np.float32(2.0)
+ROW = 2048  # trilinear.ROW: a run's rows as (row % ROW, row // ROW)
+TILE = 32  # texels a side of the tiles a map is worked in
+
+
+@njit(inline="always")
+def _weights(x, y, share):
+    """The bilinear weights of (x, y) as trilinear._run_numpy works them out (the level's
+    share folded into x), and the top-left pixel (x0, y0) as integers."""
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    ax = x - x0
+    ay = y - y0
+    bx = share - share * ax
+    by = ONE - ay
+    ax = ax * share
+    return bx * by, ax * by, bx * ay, ax * ay, np.int64(x0), np.int64(y0)
+
+
+@njit(inline="always")
+def _sum(src, a, b, c, d, w00, w01, w10, w11):
+    """The weighted sum (3 float32) of rows a, b, c, d of src."""
+    return (
+        w00 * src[a, 0] + w01 * src[b, 0] + w10 * src[c, 0] + w11 * src[d, 0],
+        w00 * src[a, 1] + w01 * src[b, 1] + w10 * src[c, 1] + w11 * src[d, 1],
+        w00 * src[a, 2] + w01 * src[b, 2] + w10 * src[c, 2] + w11 * src[d, 2],
+    )
+
+
+@njit(inline="always")
+def _level(r, j, source, plate, geometry, x, y, share):
+    """share x the bilinear sample (3 float32) at (x, y) (bordered coordinates, pixel centres
+    at integers) of level j of run r (0: L, 1: the next; `_trilinear`'s geometry). A level of
+    the flat bordered pyramid is read as NumPy's take reads it (the row base + (0, 1, stride,
+    stride + 1), clipped to the array); the plate itself, unbordered, a pixel to the left and
+    up, each coordinate held to its edge (what the border repeats)."""
+    g = geometry[r, j]
+    w00, w01, w10, w11, x0, y0 = _weights(x, y, share)
+    stride = g[1]
+    if g[4] == 0:
+        a = min(max(g[0] + y0 * stride + x0, 0), source.shape[0] - stride - 2)
+        return _sum(source, a, a + 1, a + stride, a + stride + 1, w00, w01, w10, w11)
+    c0 = min(max(x0 - 1, 0), g[2])
+    c1 = min(max(x0, 0), g[2])
+    r0 = min(max(y0 - 1, 0), g[3]) * stride
+    r1 = min(max(y0, 0), g[3]) * stride
+    return _sum(plate, r0 + c0, r0 + c1, r1 + c0, r1 + c1, w00, w01, w10, w11)
+
+
+@njit(inline="always")
+def _trilinear(row, r, x, y, upper, shares, geometry, source, plate):
+    """The trilinear sample (3 float32) of row `row` of run `r` (trilinear.py). geometry:
+    (runs, 3, 5) int64: per level of the run (L, next) its offset in `source`, row length,
+    last column, last row, and 1 when it is the plate itself (unbordered) rather than a level
+    of `source`; then (single: the run reads level L alone, halve: next = L + 1, 0, 0, 0)."""
+    xr = x[row]
+    yr = y[row]
+    if geometry[r, 2, 0] != 0:  # single
+        return _level(r, 0, source, plate, geometry, xr, yr, ONE)
+    up = shares[upper[row]]
+    a0, a1, a2 = _level(r, 0, source, plate, geometry, xr, yr, ONE - up)
+    if geometry[r, 2, 1] != 0:  # halve
+        xr = xr * HALF + QUARTER
+        yr = yr * HALF + QUARTER
+    b0, b1, b2 = _level(r, 1, source, plate, geometry, xr, yr, up)
+    return a0 + b0, a1 + b1, a2 + b2
+
+
+@njit(parallel=True, cache=True)
+def trilinear_map(x, y, upper, shares, rank, starts, geometry, source, plate, out):
+    """out (H, W, 3) = every texel's trilinear sample, texel (i, j) read at its row of the
+    runs (rank (H, W, 2) int16: row % ROW, row // ROW; run r holds rows starts[r] ..
+    starts[r + 1] - 1, a whole number of ROW rows). Worked in tiles of TILE x TILE texels:
+    neighbouring texels read neighbouring pixels, which a tile finds in the cache."""
+    # Runs hold whole rows of ROW texels: the run of every ROW-row block, looked up.
+    blocks = np.empty(starts[-1] // ROW, np.int64)
+    for r in range(starts.size - 1):
+        blocks[starts[r] // ROW : starts[r + 1] // ROW] = r
+    for i in prange(rank.shape[0]):
+        for j in range(rank.shape[1]):
+            block = np.int64(rank[i, j, 1])
+            row = block * ROW + np.int64(rank[i, j, 0])
+            v0, v1, v2 = _trilinear(
+                row, blocks[block], x, y, upper, shares, geometry, source, plate
+            )
+            out[i, j, 0] = v0
+            out[i, j, 1] = v1
+            out[i, j, 2] = v2
+
+
+@njit(parallel=True, cache=True)
+def extension_runs(x, y, upper, shares, firsts, counts, done, geometry, texels, weight,
+                   source, plate, out):  # fmt: skip
+    """out[texels] = the extension (extension.py): run r's first counts[r] rows (from
+    firsts[r]) are texels[done[r] ..]; faded into the fill already in `out` by `weight`
+    (a 0-length weight: the extension alone)."""
+    fade = weight.size > 0
+    for i in prange(texels.size):
+        r = np.searchsorted(done, i, side="right") - 1
+        row = firsts[r] + (i - done[r])
+        v0, v1, v2 = _trilinear(row, r, x, y, upper, shares, geometry, source, plate)
+        t = np.int64(texels[i])
+        if fade:
+            w = weight[i]
+            f0, f1, f2 = out[t, 0], out[t, 1], out[t, 2]
+            out[t, 0] = (v0 - f0) * w + f0
+            out[t, 1] = (v1 - f1) * w + f1
+            out[t, 2] = (v2 - f2) * w + f2
+        else:
+            out[t, 0] = v0
+            out[t, 1] = v1
+            out[t, 2] = v2
+
+
+@njit(parallel=True, cache=True)
+def supersample_runs(base, fx, fy, starts, strides, on_plate, texels, source, plate, out):
+    """out[texels] = the mean of each texel's K bilinear samples (supersample.py): sample j
+    of row i reads rows base[i, j] + (0, 1, stride, stride + 1) of the plate (its run on
+    level 0) or of the flat pyramid, weighted by its uint16 steps fx, fy."""
+    k = base.shape[1]
+    scale = np.float32(1.0 / 65535)
+    share = np.float32(1.0 / k)
+    runs = starts.size - 1
+    for i in prange(starts[runs]):
+        r = np.searchsorted(starts, i, side="right") - 1
+        stride = strides[r]
+        src = plate if on_plate[r] else source
+        acc0 = np.float32(0.0)
+        acc1 = np.float32(0.0)
+        acc2 = np.float32(0.0)
+        for j in range(k):
+            b = np.int64(base[i, j])
+            ax = np.float32(fx[i, j]) * scale
+            ay = np.float32(fy[i, j]) * scale
+            bx = ONE - ax
+            by = (ONE - ay) * share
+            ay = ay * share
+            w00 = by * bx
+            w01 = by * ax
+            w10 = ay * bx
+            w11 = ay * ax
+            acc0 += (w00 * src[b, 0] + w01 * src[b + 1, 0]
+                     + w10 * src[b + stride, 0] + w11 * src[b + stride + 1, 0])  # fmt: skip
+            acc1 += (w00 * src[b, 1] + w01 * src[b + 1, 1]
+                     + w10 * src[b + stride, 1] + w11 * src[b + stride + 1, 1])  # fmt: skip
+            acc2 += (w00 * src[b, 2] + w01 * src[b + 1, 2]
+                     + w10 * src[b + stride, 2] + w11 * src[b + stride + 1, 2])  # fmt: skip
+        t = np.int64(texels[i])
+        out[t, 0] = acc0
+        out[t, 1] = acc1
+        out[t, 2] = acc2
+
+
+@njit(parallel=True, cache=True)
+def weighted_rows(source, index, weight, texels, out):
+    """out[texels[i]] (every row i when texels is empty) = sum_k weight[i, k] source[index[i, k]]
+    (indices beyond the source read its last row, as NumPy's take with mode "clip")."""
+    last = source.shape[0] - 1
+    every = texels.size == 0
+    for n in prange(index.shape[0]):
+        i = np.int64(n)
+        acc0 = np.float32(0.0)
+        acc1 = np.float32(0.0)
+        acc2 = np.float32(0.0)
+        for k in range(index.shape[1]):
+            j = min(max(np.int64(index[i, k]), 0), last)
+            w = weight[i, k]
+            acc0 += w * source[j, 0]
+            acc1 += w * source[j, 1]
+            acc2 += w * source[j, 2]
+        t = i if every else np.int64(texels[i])
+        out[t, 0] = acc0
+        out[t, 1] = acc1
+        out[t, 2] = acc2
+
+
+@njit(parallel=True, cache=True)
+def fill_rows(steps, side, lookup, width, out):
+    """The fill of a lat-long (fill.fill_values): out (rows * width, 3) from each row's step
+    (steps (rows,)) or each texel's (steps (rows * width,)) in `lookup` (sides, n, 3), the
+    two sides blended by side (3 width,) (the left's weight per column and channel; a
+    0-length side: the left side alone)."""
+    rows = out.shape[0] // width
+    per_row = steps.size == rows
+    blend = side.size > 0
+    for n in prange(rows):
+        r = np.int64(n)
+        for col in range(width):
+            t = r * width + col
+            s = steps[r] if per_row else steps[t]
+            for c in range(3):
+                left = lookup[0, s, c]
+                if blend:
+                    w = side[3 * col + c]
+                    out[t, c] = left * w + lookup[1, s, c] * (ONE - w)
+                else:
+                    out[t, c] = left
+
+
+@njit(parallel=True, cache=True)
+def halve(src, dst):
+    """dst ((h + 1) // 2, (w + 1) // 2, 3) = the means of src's (h, w, 3) 2 x 2 blocks, as
+    mipmap._halve works them out: each pair of rows summed and scaled by 1/4, then pairs of
+    columns added; an odd last row or column repeated."""
+    h, w = src.shape[0], src.shape[1]
+    half, wide = dst.shape[0], dst.shape[1]
+    for i in prange(half):
+        r0 = 2 * i
+        if r0 + 1 < h:
+            for j in range(w // 2):
+                for c in range(3):
+                    a = (src[r0, 2 * j, c] + src[r0 + 1, 2 * j, c]) * QUARTER
+                    b = (src[r0, 2 * j + 1, c] + src[r0 + 1, 2 * j + 1, c]) * QUARTER
+                    dst[i, j, c] = a + b
+            if w % 2:
+                for c in range(3):
+                    pair = (src[r0, w - 1, c] + src[r0 + 1, w - 1, c]) * QUARTER
+                    dst[i, wide - 1, c] = TWO * pair
+        else:  # an odd last row: its own pairs, halved and added
+            for j in range(w // 2):
+                for c in range(3):
+                    dst[i, j, c] = src[r0, 2 * j, c] * HALF + src[r0, 2 * j + 1, c] * HALF
+            if w % 2:
+                for c in range(3):
+                    dst[i, wide - 1, c] = TWO * (src[r0, w - 1, c] * HALF)
+
+
+@njit(parallel=True, cache=True)
+def block_means(src, dst, k):
+    """dst (h / k, w / k, 3) = the means of src's (h, w, 3) k x k blocks (h, w multiples of k),
+    as mipmap._blocks works them out: k rows summed in order and scaled by 1 / k^2, then k
+    columns added in order."""
+    scale = np.float32(1.0 / (k * k))
+    for i in prange(dst.shape[0]):
+        for j in range(dst.shape[1]):
+            for c in range(3):
+                total = np.float32(0.0)
+                for q in range(k):
+                    s = src[k * i, k * j + q, c]
+                    for p in range(1, k):
+                        s += src[k * i + p, k * j + q, c]
+                    s = s * scale
+                    total = s if q == 0 else total + s
+                dst[i, j, c] = total
