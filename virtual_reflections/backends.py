@@ -15,7 +15,9 @@ asks for it first (each only when it imports).
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import sys
 import threading
 
 _cv2 = []
@@ -34,21 +36,52 @@ def cv2():
     return _cv2[0]
 
 
+KERNELS = "virtual_reflections_kernels"  # the compiled kernels' module, by one name
+
+
 def kernels():
-    """The compiled kernels (kernels.py), or None when Numba does not import (once)."""
+    """The compiled kernels (kernels.py), or None when Numba does not import (once).
+
+    Loaded as the top-level module KERNELS whatever the package is called (the engine, the
+    add-on as Blender names it, the tests' copy): Numba's on-disk cache is kept per source
+    file and records the module to import when it loads a kernel, so one name serves every
+    way the file is imported."""
     if not _kernels:
         try:
-            from . import kernels as module  # imports numba: optional, never required
+            module = sys.modules.get(KERNELS) or _load_kernels()
+            _start_threads()
         except Exception:  # not installed, or broken: the other back ends, never an error
             module = None
-        else:
-            import numba
-
-            from .parallel import workers
-
-            numba.set_num_threads(min(workers(), numba.config.NUMBA_NUM_THREADS))
         _kernels.append(module)
     return _kernels[0]
+
+
+def _start_threads() -> None:
+    """Numba's threads: its own scheduler (workqueue) unless NUMBA_THREADING_LAYER names
+    another — GNU OpenMP, which Numba would pick where it is installed, aborts a process that
+    forks after using it (the study's and a farm's worker pools fork), and the calls here are
+    one at a time anyway (`run`) — as many as the engine's threads (VR_THREADS)."""
+    import numba
+
+    from .parallel import workers
+
+    if not os.environ.get("NUMBA_THREADING_LAYER"):
+        numba.config.THREADING_LAYER = "workqueue"
+    numba.set_num_threads(min(workers(), numba.config.NUMBA_NUM_THREADS))
+
+
+def _load_kernels():
+    """Import kernels.py (which imports numba: optional, never required) as KERNELS."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "kernels.py")
+    spec = importlib.util.spec_from_file_location(KERNELS, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[KERNELS] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[KERNELS]
+        raise
+    return module
 
 
 def _forced() -> str:

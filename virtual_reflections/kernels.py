@@ -24,7 +24,6 @@ HALF = np.float32(0.5)
 QUARTER = np.float32(0.25)
 TWO = np.float32(2.0)
 ROW = 2048  # trilinear.ROW: a run's rows as (row % ROW, row // ROW)
-TILE = 32  # texels a side of the tiles a map is worked in
 
 
 @njit(inline="always")
@@ -94,22 +93,25 @@ def _trilinear(row, r, x, y, upper, shares, geometry, source, plate):
 def trilinear_map(x, y, upper, shares, rank, starts, geometry, source, plate, out):
     """out (H, W, 3) = every texel's trilinear sample, texel (i, j) read at its row of the
     runs (rank (H, W, 2) int16: row % ROW, row // ROW; run r holds rows starts[r] ..
-    starts[r + 1] - 1, a whole number of ROW rows). Worked in tiles of TILE x TILE texels:
-    neighbouring texels read neighbouring pixels, which a tile finds in the cache."""
+    starts[r + 1] - 1, a whole number of ROW rows)."""
     # Runs hold whole rows of ROW texels: the run of every ROW-row block, looked up.
     blocks = np.empty(starts[-1] // ROW, np.int64)
     for r in range(starts.size - 1):
         blocks[starts[r] // ROW : starts[r + 1] // ROW] = r
     for i in prange(rank.shape[0]):
-        for j in range(rank.shape[1]):
-            block = np.int64(rank[i, j, 1])
-            row = block * ROW + np.int64(rank[i, j, 0])
-            v0, v1, v2 = _trilinear(
-                row, blocks[block], x, y, upper, shares, geometry, source, plate
-            )
-            out[i, j, 0] = v0
-            out[i, j, 1] = v1
-            out[i, j, 2] = v2
+        _trilinear_row(i, blocks, x, y, upper, shares, rank, geometry, source, plate, out)
+
+
+@njit(inline="always")
+def _trilinear_row(i, blocks, x, y, upper, shares, rank, geometry, source, plate, out):
+    """`trilinear_map`'s row i."""
+    for j in range(rank.shape[1]):
+        block = np.int64(rank[i, j, 1])
+        row = block * ROW + np.int64(rank[i, j, 0])
+        v0, v1, v2 = _trilinear(row, blocks[block], x, y, upper, shares, geometry, source, plate)
+        out[i, j, 0] = v0
+        out[i, j, 1] = v1
+        out[i, j, 2] = v2
 
 
 @njit(parallel=True, cache=True)

@@ -115,3 +115,24 @@ def test_vr_gather_picks_the_back_end(monkeypatch):
     default = backends.backend()
     assert default == backends.available_backends()[0]
     assert backends.available_backends()[-1] == "numpy"
+
+
+def _forked_map(seed):
+    plate = _plate(seed=seed)
+    return environment_map(plate, (120, 60, 210, 150), Params(method="camera", hfov=50.0))
+
+
+@needs_numba
+def test_a_process_that_used_the_kernels_can_fork_workers(monkeypatch):
+    """The study's and the farm's worker pools fork: Numba's threads must survive it (GNU
+    OpenMP, which Numba picks where installed, aborts the child; backends.py uses Numba's
+    own scheduler)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    monkeypatch.setenv("VR_GATHER", "numba")
+    here = _forked_map(1)  # the parent's threads started
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        there = list(pool.map(_forked_map, [1, 2], timeout=120))
+    assert np.array_equal(there[0], here)
+    assert not np.array_equal(there[1], here)
