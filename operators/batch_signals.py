@@ -43,6 +43,19 @@ def raise_if_signalled():
         raise Interrupted(_signalled[-1])
 
 
+def _quiet(hook):
+    """sys.unraisablehook that drops an Interrupted raised where Python cannot pass it on
+    (a callback from C: the engine's optional compiled back end caches its kernels through
+    one) — it is recorded and raised again at the next step (`raise_if_signalled`) — and
+    hands every other unraisable exception to `hook`."""
+
+    def unraisable(info):
+        if not isinstance(info.exc_value, Interrupted):
+            hook(info)
+
+    return unraisable
+
+
 @contextlib.contextmanager
 def stop_on_signals():
     """Ctrl-C and SIGTERM raise Interrupted while the block runs (main thread only)."""
@@ -53,9 +66,12 @@ def stop_on_signals():
             previous[sig] = signal.signal(sig, _on_signal)
     except ValueError:  # not the main thread
         pass
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet(hook)
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for sig, handler in previous.items():
             if handler is not None:  # None: a handler set outside Python (Blender's)
                 signal.signal(sig, handler)

@@ -211,7 +211,7 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
     p360, peer_name = _peer()
     rows = []
     print(_machine())
-    print(f"peer: {peer_name}")
+    print(f"peer: {peer_name}; ours: the {backend()} back end (VR_GATHER picks another)")
     for name in plates:
         width, height = PLATES[name]
         plate = _plate(width, height)
@@ -291,7 +291,11 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)
     axes[2].legend(fontsize=7)
-    fig.suptitle(f"{os.cpu_count()} cores, NumPy {np.__version__}; peer: {peer_name}", fontsize=9)
+    fig.suptitle(
+        f"{os.cpu_count()} cores, NumPy {np.__version__}, ours on its {backend()} back end; "
+        f"peer: {peer_name}",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path)
     print(f"wrote {path}")
