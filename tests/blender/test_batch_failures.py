@@ -4,6 +4,7 @@ mismatched plate frames, windowed EXR plates, bad options, memory, Ctrl-C/SIGTER
 Full disk: a file-size limit (RLIMIT_FSIZE) in the child; every write past it fails."""
 
 import json
+import os
 import pathlib
 import resource
 import signal
@@ -265,3 +266,31 @@ def test_unexpected_exception_exits_non_zero(shot, tmp_path, monkeypatch, capsys
     assert err.strip().splitlines() == [
         "render_shot: error: internal error: TypeError: something nobody expected"
     ]
+
+
+def test_an_interrupt_in_a_callback_from_c_is_held_for_the_next_step():
+    """A signal whose Interrupted is raised inside a callback from C (Python cannot pass it
+    on there and would print it: the compiled back end's kernel cache calls back through
+    ctypes) prints nothing; the next step raises it, and other unraisable errors still print."""
+    from shots import addon_part
+
+    signals = addon_part("operators.batch_signals")
+    seen = []
+    previous = sys.unraisablehook
+    sys.unraisablehook = seen.append
+    try:
+        with signals.stop_on_signals():
+            with pytest.raises(signals.Interrupted):  # the handler raises and records it
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5)
+            for error in (signals.Interrupted(signal.SIGTERM), RuntimeError("other")):
+                sys.unraisablehook(
+                    type("Info", (), {"exc_value": error, "exc_type": type(error)})()
+                )
+            with pytest.raises(signals.Interrupted) as raised:
+                signals.raise_if_signalled()
+            assert raised.value.exit_code == 143
+        assert [type(i.exc_value) for i in seen] == [RuntimeError]
+        assert sys.unraisablehook == seen.append  # restored on the way out
+    finally:
+        sys.unraisablehook = previous
