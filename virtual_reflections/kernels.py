@@ -57,16 +57,16 @@ def _level(r, j, source, plate, geometry, x, y, share):
     the flat bordered pyramid is read as NumPy's take reads it (the row base + (0, 1, stride,
     stride + 1), clipped to the array); the plate itself, unbordered, a pixel to the left and
     up, each coordinate held to its edge (what the border repeats)."""
-    g = geometry[r, j]
     w00, w01, w10, w11, x0, y0 = _weights(x, y, share)
-    stride = g[1]
-    if g[4] == 0:
-        a = min(max(g[0] + y0 * stride + x0, 0), source.shape[0] - stride - 2)
+    stride = geometry[r, j, 1]
+    if geometry[r, j, 4] == 0:
+        a = min(max(geometry[r, j, 0] + y0 * stride + x0, 0), source.shape[0] - stride - 2)
         return _sum(source, a, a + 1, a + stride, a + stride + 1, w00, w01, w10, w11)
-    c0 = min(max(x0 - 1, 0), g[2])
-    c1 = min(max(x0, 0), g[2])
-    r0 = min(max(y0 - 1, 0), g[3]) * stride
-    r1 = min(max(y0, 0), g[3]) * stride
+    right, bottom = geometry[r, j, 2], geometry[r, j, 3]
+    c0 = min(max(x0 - 1, 0), right)
+    c1 = min(max(x0, 0), right)
+    r0 = min(max(y0 - 1, 0), bottom) * stride
+    r1 = min(max(y0, 0), bottom) * stride
     return _sum(plate, r0 + c0, r0 + c1, r1 + c0, r1 + c1, w00, w01, w10, w11)
 
 
