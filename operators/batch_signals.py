@@ -70,7 +70,8 @@ def stop_on_signals():
     sys.unraisablehook = _quiet(hook)
     try:
         yield
-    finally:
+    finally:  # what arrived during the block is its own, not a later run's in this process
+        _signalled.clear()
         sys.unraisablehook = hook
         for sig, handler in previous.items():
             if handler is not None:  # None: a handler set outside Python (Blender's)
