@@ -22,9 +22,10 @@ from .operators.choices import (
     RESOLUTION_ITEMS,
     addon_preferences,
 )
-from .virtual_reflections import cache
+from .virtual_reflections import backends, cache
 
 BATCH = "The batch command line (render_shot.py)"
+FASTER = "Optional: numba installed in Blender's Python makes map updates 2-4x faster"
 
 
 class VR_AddonPreferences(bpy.types.AddonPreferences):
@@ -82,6 +83,10 @@ class VR_AddonPreferences(bpy.types.AddonPreferences):
         except ValueError as exc:
             where = str(exc)
         col.label(text=where, icon="FILE_FOLDER")
+        col = layout.column()
+        col.label(text=f"Engine: {backends.describe()}", icon="INFO")
+        if "numba" not in backends.installed():
+            col.label(text=FASTER)
         if not dependencies.available("OpenImageIO"):  # everything in Blender works without
             row = layout.row()
             row.alert = True

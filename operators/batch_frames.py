@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
+from ..virtual_reflections import backends
 from ..virtual_reflections.atomic_files import (
     ImageError,
     held_stderr,
@@ -292,6 +293,7 @@ def _run_header(scene, options, source, name, out, size, own, use_passes):
         },
         "reflections": {
             "enabled": not options.no_reflections,
+            "back_end": backends.backend(),  # the engine's gathers: numba, opencv or numpy
             "passes": passes if use_passes else 1,
             "passes_requested": passes,
             "smoothing": settings.smoothing,

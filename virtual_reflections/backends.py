@@ -104,6 +104,24 @@ def available_backends() -> list:
     return names + (["opencv"] if cv2() is not None else []) + ["numpy"]
 
 
+NAMES = {"numba": "compiled (Numba)", "opencv": "OpenCV", "numpy": "NumPy"}
+
+
+def installed() -> list:
+    """The optional back ends whose modules are installed, fastest first, found without
+    importing them (a panel may ask while it draws)."""
+    found = importlib.util.find_spec
+    return [name for name, module in (("numba", "numba"), ("opencv", "cv2")) if found(module)]
+
+
+def describe() -> str:
+    """The gathers' back end for a panel: the one in use once the engine has chosen, else the
+    fastest installed (found, not imported: importing Numba takes ~0.5 s)."""
+    if _kernels or _forced():
+        return NAMES[backend()]
+    return NAMES[(installed() or ["numpy"])[0]]
+
+
 def pyramid_backend() -> str:
     """The pyramid's back end: Numba's when the gathers use it, else OpenCV's area resize
     when cv2 imports and NumPy is not forced, else NumPy."""

@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 import pytest
 from sequence_shots import COLOURS, build_scene, read, write_movie, write_plates
+from shots import addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -67,6 +68,9 @@ def test_frames_write_composites_and_report(shot, tmp_path):
         assert np.argmax(on_sphere(pixels)) == np.argmax(COLOURS[frame - 1])
     report = json.loads((out / "shot.report.json").read_text())
     assert report["complete"] and report["plate_kind"] == "sequence"
+    # the engine back end that made the maps (this process runs with the same environment)
+    backends = addon_part("virtual_reflections.backends")
+    assert report["reflections"]["back_end"] == backends.backend()
     assert [e["frame"] for e in report["frames"]] == [1, 2, 3]
     first = report["frames"][0]
     assert first["status"] == "rendered" and first["plate"] == str(plates[0])
