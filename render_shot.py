@@ -64,6 +64,10 @@ def _terminate(signum, frame):
     raise Terminated()
 
 
+def _silent(info):
+    """An unraisablehook that prints nothing."""
+
+
 def _error(message):
     lines = [line for line in str(message).splitlines() if line.strip()]
     print(f"render_shot: error: {lines[0] if lines else 'failed'}", file=sys.stderr, flush=True)
@@ -208,6 +212,10 @@ def main(argv=None):
         code = getattr(exc, "exit_code", code)
         word = "terminated" if code == EXIT_TERMINATED else "interrupted"
         print(f"render_shot: {word}", file=sys.stderr, flush=True)
+        # The run ends where it stopped: what it left half made (a kernel the optional
+        # compiled back end was compiling) may fail in its destructor on the way out; print
+        # nothing of that, this line said why the run ended.
+        sys.unraisablehook = _silent
         return code
     except Exception as exc:  # a bug: still one line and a failure, never exit code 0
         if os.environ.get("VR_TRACEBACK"):

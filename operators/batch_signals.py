@@ -11,6 +11,8 @@ import gc
 import signal
 import sys
 
+from ..virtual_reflections.backends import hold_interrupts
+
 
 class Interrupted(KeyboardInterrupt):
     """Ctrl-C (exit code 130) or SIGTERM (143): the run stops where it is, its temporary
@@ -43,19 +45,6 @@ def raise_if_signalled():
         raise Interrupted(_signalled[-1])
 
 
-def _quiet(hook):
-    """sys.unraisablehook that drops an Interrupted raised where Python cannot pass it on
-    (a callback from C: the engine's optional compiled back end caches its kernels through
-    one) — it is recorded and raised again at the next step (`raise_if_signalled`) — and
-    hands every other unraisable exception to `hook`."""
-
-    def unraisable(info):
-        if not isinstance(info.exc_value, Interrupted):
-            hook(info)
-
-    return unraisable
-
-
 @contextlib.contextmanager
 def stop_on_signals():
     """Ctrl-C and SIGTERM raise Interrupted while the block runs (main thread only)."""
@@ -67,7 +56,7 @@ def stop_on_signals():
     except ValueError:  # not the main thread
         pass
     hook = sys.unraisablehook
-    sys.unraisablehook = _quiet(hook)
+    sys.unraisablehook = hold_interrupts(hook, [])  # recorded in _signalled already
     try:
         yield
     finally:  # what arrived during the block is its own, not a later run's in this process

@@ -136,3 +136,23 @@ def run(kernel, *args) -> None:
     entered from two threads at once (it would abort the process)."""
     with _lock:
         kernel(*args)
+
+
+def hold_interrupts(hook, held: list):
+    """A sys.unraisablehook that keeps in `held` an interrupt raised where Python cannot pass it
+    on — a callback from C: Numba caches a kernel it compiled through one — to be raised again
+    when the work returns, and hands every other unraisable error to `hook`."""
+
+    def unraisable(info):
+        if isinstance(info.exc_value, KeyboardInterrupt):
+            held.append(info.exc_value)
+        else:
+            hook(info)
+
+    return unraisable
+
+
+def silent(info) -> None:
+    """The unraisablehook after an interrupt: the process ends where the work stopped, and
+    what that work leaves half made (a kernel being compiled) may fail in its destructor on
+    the way out; nothing of it is printed, the one line said why the run ended."""

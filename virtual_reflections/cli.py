@@ -32,6 +32,7 @@ import sys
 import time
 
 from .atomic_files import ImageError, same_file
+from .backends import hold_interrupts, silent
 from .envmap import DEFAULT_SIZE
 from .imagefiles import check_writable, read_header, read_plate, write_map
 from .memory import check_fits, plate_job_bytes
@@ -256,12 +257,16 @@ def main(argv=None) -> int:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread: leave signals alone
         previous = None
+    hook, held = sys.unraisablehook, []
+    sys.unraisablehook = hold_interrupts(hook, held)
     try:
         args = build_parser().parse_args(_numbers_after_bbox(argv))
         if args.command == "envmap":
             run_envmap(args)
         else:
             run_segment(args)
+        if held:  # an interrupt that landed in a callback from C
+            raise held[-1]
     except (UsageError, ImageError) as exc:
         _error(exc)
         return getattr(exc, "exit_code", EXIT_BAD_INPUT)
@@ -270,11 +275,14 @@ def main(argv=None) -> int:
         return EXIT_FAILED
     except Terminated:
         print("virtual_reflections: terminated", file=sys.stderr)
+        hook = silent
         return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("virtual_reflections: interrupted", file=sys.stderr)
+        hook = silent
         return EXIT_INTERRUPTED
     finally:
+        sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     return 0

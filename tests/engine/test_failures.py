@@ -267,3 +267,29 @@ def test_folder_and_depth_only_plates_are_named(tmp_path):
     depth = write(tmp_path / "depth.exr", np.ones((90, 160, 1), np.float32), spec=spec)
     r = run("envmap", depth, "-o", tmp_path / "m.exr", *BBOX, *PAPER)
     assert r.returncode == 2 and one_line(r) and "no colour channels" in r.stderr, r.stderr
+
+
+def test_sigterm_inside_a_callback_from_c_still_ends_the_run(plate, tmp_path, monkeypatch, capsys):
+    """A SIGTERM whose exception is raised inside a callback from C (the optional compiled back
+    end caches a kernel through one; Python cannot pass the exception on there and would print
+    it and go on) is held and raised when the work returns: one line, exit code 143; and as
+    the process ends, what the interrupted work left half made prints nothing."""
+    from virtual_reflections import backends
+
+    def envmap_then_callback(args):
+        # What Python does with an exception raised in a callback from C.
+        sys.unraisablehook(type("Info", (), {"exc_value": cli.Terminated()})())
+
+    monkeypatch.setattr(cli, "run_envmap", envmap_then_callback)
+    previous = sys.unraisablehook
+    try:
+        code = cli.main(["envmap", str(plate), "-o", str(tmp_path / "m.exr"), *map(str, BBOX)])
+        err = capsys.readouterr().err
+        assert code == 143 and err.strip() == "virtual_reflections: terminated", err
+        assert sys.unraisablehook is backends.silent  # the way out prints nothing more
+    finally:
+        sys.unraisablehook = previous
+    seen = []
+    hook = backends.hold_interrupts(seen.append, held := [])
+    hook(type("Info", (), {"exc_value": RuntimeError("not an interrupt")})())
+    assert not held and len(seen) == 1  # other unraisable errors are still printed
