@@ -136,3 +136,10 @@ def test_a_process_that_used_the_kernels_can_fork_workers(monkeypatch):
         there = list(pool.map(_forked_map, [1, 2], timeout=120))
     assert np.array_equal(there[0], here)
     assert not np.array_equal(there[1], here)
+
+
+@needs_numba
+def test_the_kernels_read_the_runs_as_trilinear_writes_them():
+    from virtual_reflections import trilinear
+
+    assert backends.kernels().ROW == trilinear.ROW
