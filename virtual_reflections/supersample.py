@@ -149,6 +149,8 @@ def gather(samples: Supersample, source, out, plate=None) -> None:
     float32, the plate's rows)."""
     if any(samples.on_plate) and plate is None:
         raise ValueError("these samples read level 0 from the plate: pass it")
+    if not all(samples.on_plate) and source is None:  # (the compiled pass reads unchecked)
+        raise ValueError("these samples read the pyramid's levels: pass it")
     if backend() == "numba":
         none = np.zeros((0, 3), np.float32)
         run(kernels().supersample_runs, samples.base, samples.fx, samples.fy,

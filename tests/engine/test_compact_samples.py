@@ -186,6 +186,8 @@ def test_compact_supersamples_read_what_their_taps_read(monkeypatch, use):
     assert np.abs(out[texels] - expected).max() < 2e-5
     with pytest.raises(ValueError, match="plate"):
         gather_supersample(samples, flat, out)
+    with pytest.raises(ValueError, match="pyramid"):
+        gather_supersample(samples, None, out, plate=plate)
     gather_supersample(samples, flat, out, plate=plate)
     assert np.abs(out[texels] - expected).max() < 2e-5
     assert (samples.base.nbytes + samples.fx.nbytes + samples.fy.nbytes) / (count * k) == 8
