@@ -20,6 +20,8 @@ import os
 import sys
 import threading
 
+import numpy as np
+
 _cv2 = []
 _kernels = []
 _lock = threading.Lock()
@@ -129,6 +131,14 @@ def pyramid_backend() -> str:
     if use == "numba":
         return "numba"
     return "opencv" if _forced() != "numpy" and cv2() is not None else "numpy"
+
+
+def given(array, columns: int = 0, dtype=np.float32) -> np.ndarray:
+    """`array`, or for None an empty one (columns wide, 0: one axis): a compiled kernel takes
+    an array where an argument is absent."""
+    if array is not None:
+        return array
+    return np.zeros((0, columns) if columns else 0, dtype)
 
 
 def run(kernel, *args) -> None:

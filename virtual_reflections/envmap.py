@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 
-from .backends import backend, kernels, run
+from .backends import backend, given, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
 from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values
@@ -110,8 +110,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             fill_values(mine, side, lookup, out[texels])
 
         if use == "numba":  # one compiled pass over the map
-            none = np.zeros(0, np.float32)
-            run(kernels().fill_rows, steps, none if side is None else side, lookup, width, out)
+            run(kernels().fill_rows, steps, given(side), lookup, width, out)
         elif steps.size == table.shape[0]:  # one step per row: one matrix product
             fill_values(steps, side, lookup, out)
         else:
@@ -135,7 +134,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 def _gather(source, texels, index, weight, out) -> None:
     """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
     if backend() == "numba":
-        every = np.zeros(0, np.int64) if texels is None else texels
+        every = given(texels, dtype=np.int64)  # empty: every row
         run(kernels().weighted_rows, source, index, weight, every, out)
         return
     buffer = _scratch("taps", index.shape + (3,))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backends import backend, kernels, run
+from .backends import backend, given, kernels, run
 from .taps import put_rows, take_rows
 from .trilinear import ROW, Trilinear, compiled_args, gather_runs, trilinear_samples
 
@@ -85,10 +85,9 @@ def apply(ext: Extension, source, shapes, offsets, out) -> None:
         )
         counts = np.asarray(ext.counts, np.int64)
         done = np.concatenate(([0], np.cumsum(counts)))
-        weight = np.zeros(0, np.float32) if ext.weight is None else ext.weight
         firsts = np.asarray(ext.samples.starts[:-1], np.int64)
         run(kernels().extension_runs, x, y, upper, shares, firsts, counts, done, geometry,
-            ext.texels, weight, source, plate, out)  # fmt: skip
+            ext.texels, given(ext.weight), source, plate, out)  # fmt: skip
         return
     values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
     done = 0

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backends import backend, kernels, run
+from .backends import backend, given, kernels, run
 from .parallel import for_blocks
 from .taps import put_rows, weighted_sum
 
@@ -152,11 +152,10 @@ def gather(samples: Supersample, source, out, plate=None) -> None:
     if not all(samples.on_plate) and source is None:  # (the compiled pass reads unchecked)
         raise ValueError("these samples read the pyramid's levels: pass it")
     if backend() == "numba":
-        none = np.zeros((0, 3), np.float32)
         run(kernels().supersample_runs, samples.base, samples.fx, samples.fy,
             np.asarray(samples.starts, np.int64), np.asarray(samples.strides, np.int64),
             np.asarray(samples.on_plate, np.bool_), samples.texels,
-            none if source is None else source, none if plate is None else plate, out)  # fmt: skip
+            given(source, 3), given(plate, 3), out)  # fmt: skip
         return
     k = samples.base.shape[1]
     scale = np.float32(1.0 / STEPS)

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backends import backend, cv2, kernels, run
+from .backends import backend, cv2, given, kernels, run
 from .parallel import for_blocks
 from .taps import weighted_sum
 
@@ -270,18 +270,14 @@ def compiled_args(samples: Trilinear, source, shapes, offsets, plate=None) -> tu
             else:
                 geometry[r, j] = (int(offsets[v]), w + 2, w + 1, h + 1, 0)
         geometry[r, 2, :2] = (samples.singles[r], nxt > level)
-    rows = np.zeros((0, 3), np.float32) if plate is None else plate_rows(plate)
+    rows = None if plate is None else plate_rows(plate)
     upper = samples.upper.view(np.uint16)
-    return samples.x, samples.y, upper, _shares(), geometry, _source(source), rows
+    return samples.x, samples.y, upper, _shares(), geometry, given(source, 3), given(rows, 3)
 
 
 def plate_rows(plate) -> np.ndarray:
     """The plate as (H * W, 3) C-contiguous float32 rows (a view when it is already)."""
     return np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
-
-
-def _source(source) -> np.ndarray:
-    return np.zeros((0, 3), np.float32) if source is None else source
 
 
 @functools.cache
@@ -389,8 +385,7 @@ def _run_opencv(samples, a, b, low, high, halve, values, single=False) -> None:
 def _scaled_shares() -> np.ndarray:
     """(65536,) float32: every float16 share (by its bits) times 2^17, the blend's weight:
     one lookup per texel where NumPy's float16 conversion costs about twice as much."""
-    with np.errstate(invalid="ignore", over="ignore"):
-        bits = np.arange(65536, dtype=np.uint32).astype(np.uint16)
-        scaled = bits.view(np.float16).astype(np.float32) * np.float32(2.0**17)
+    with np.errstate(invalid="ignore", over="ignore"):  # the NaN and infinite bit patterns
+        scaled = _shares() * np.float32(2.0**17)
     scaled.flags.writeable = False  # shared by every call
     return scaled
