@@ -26,6 +26,7 @@ HALF = np.float32(0.5)
 QUARTER = np.float32(0.25)
 TWO = np.float32(2.0)
 ROW = 2048  # trilinear.ROW: a run's rows as (row % ROW, row // ROW)
+FUSED = 4  # levels of the pyramid made together, in stripes (`pyramid`)
 
 
 @njit(inline="always")
@@ -228,54 +229,114 @@ def fill_rows(steps, side, lookup, width, out):
 @njit(parallel=True, cache=True)
 def halve(src, dst):
     """dst ((h + 1) // 2, (w + 1) // 2, 3) = the means of src's (h, w, 3) 2 x 2 blocks, as
+    mipmap._halve works them out (`_halve_row`)."""
+    for i in prange(dst.shape[0]):
+        _halve_row(src, 0, src.shape[0], src.shape[1], np.int64(i), dst, 0)
+
+
+@njit(inline="always")
+def _halve_row(src, s, h, w, i, dst, off):
+    """Row i of the means of src's h x w pixels' 2 x 2 blocks (from row and column s: 1 for
+    a bordered level) into dst's row i + off, from column off (1: a bordered level), as
     mipmap._halve works them out: each pair of rows summed and scaled by 1/4, then pairs of
     columns added; an odd last row or column repeated."""
-    h, w = src.shape[0], src.shape[1]
-    half, wide = dst.shape[0], dst.shape[1]
-    for i in prange(half):
-        r0 = 2 * i
-        if r0 + 1 < h:
-            for j in range(w // 2):
-                for c in range(3):
-                    a = (src[r0, 2 * j, c] + src[r0 + 1, 2 * j, c]) * QUARTER
-                    b = (src[r0, 2 * j + 1, c] + src[r0 + 1, 2 * j + 1, c]) * QUARTER
-                    dst[i, j, c] = a + b
-            if w % 2:
-                for c in range(3):
-                    pair = (src[r0, w - 1, c] + src[r0 + 1, w - 1, c]) * QUARTER
-                    dst[i, wide - 1, c] = TWO * pair
-        else:  # an odd last row: its own pairs, halved and added
-            for j in range(w // 2):
-                for c in range(3):
-                    dst[i, j, c] = src[r0, 2 * j, c] * HALF + src[r0, 2 * j + 1, c] * HALF
-            if w % 2:
-                for c in range(3):
-                    dst[i, wide - 1, c] = TWO * (src[r0, w - 1, c] * HALF)
+    r = s + 2 * i
+    wide = (w + 1) // 2
+    if 2 * i + 1 < h:
+        for j in range(w // 2):
+            for c in range(3):
+                left = (src[r, s + 2 * j, c] + src[r + 1, s + 2 * j, c]) * QUARTER
+                right = (src[r, s + 2 * j + 1, c] + src[r + 1, s + 2 * j + 1, c]) * QUARTER
+                dst[i + off, j + off, c] = left + right
+        if w % 2:
+            for c in range(3):
+                pair = (src[r, s + w - 1, c] + src[r + 1, s + w - 1, c]) * QUARTER
+                dst[i + off, wide - 1 + off, c] = TWO * pair
+        return
+    for j in range(w // 2):  # an odd last row: its own pairs, halved and added
+        for c in range(3):
+            dst[i + off, j + off, c] = src[r, s + 2 * j, c] * HALF + src[r, s + 2 * j + 1, c] * HALF
+    if w % 2:
+        for c in range(3):
+            dst[i + off, wide - 1 + off, c] = TWO * (src[r, s + w - 1, c] * HALF)
+
+
+@njit(inline="always")
+def _blocks_row(src, k, i, dst, rows):
+    """Row i of the means of src's k x k blocks (its sides multiples of k) into dst's row
+    i + 1, from column 1 (a bordered level), as mipmap._blocks works them out: k rows summed
+    in order and scaled by 1 / k^2, then k columns added in order; rows: a (width, 3)
+    scratch row (contiguous reads of the plate: 1.5x faster than block by block)."""
+    scale = np.float32(1.0 / (k * k))
+    width = src.shape[1]
+    for j in range(width):
+        for c in range(3):
+            rows[j, c] = src[k * i, j, c]
+    for p in range(1, k):
+        for j in range(width):
+            for c in range(3):
+                rows[j, c] += src[k * i + p, j, c]
+    for j in range(width):
+        for c in range(3):
+            rows[j, c] *= scale
+    for j in range(width // k):
+        for c in range(3):
+            total = rows[k * j, c]
+            for q in range(1, k):
+                total += rows[k * j + q, c]
+            dst[i + 1, j + 1, c] = total
+
+
+@njit(inline="always")
+def _border(level):
+    """Repeat a bordered level's edge pixels into its border: the first and last rows, then
+    the first and last columns (mipmap._fill_border)."""
+    h, w = level.shape[0], level.shape[1]
+    for j in range(w):
+        for c in range(3):
+            level[0, j, c] = level[1, j, c]
+            level[h - 1, j, c] = level[h - 2, j, c]
+    for i in range(h):
+        for c in range(3):
+            level[i, 0, c] = level[i, 1, c]
+            level[i, w - 1, c] = level[i, w - 2, c]
+
+
+@njit(inline="always")
+def _bordered(flat, levels, m):
+    """Level m of `levels` as an (h + 2, w + 2, 3) view of flat."""
+    o, h, w = levels[m, 0], levels[m, 1], levels[m, 2]
+    return flat[o : o + (h + 2) * (w + 2)].reshape((h + 2, w + 2, 3))
 
 
 @njit(parallel=True, cache=True)
-def block_means(src, dst, k):
-    """dst (h / k, w / k, 3) = the means of src's (h, w, 3) k x k blocks (h, w multiples of k),
-    as mipmap._blocks works them out: k rows summed in order and scaled by 1 / k^2, then k
-    columns added in order. Row by row through a summed row (contiguous reads of the plate:
-    1.5x faster than block by block)."""
-    scale = np.float32(1.0 / (k * k))
-    width = src.shape[1]
-    for i in prange(dst.shape[0]):
-        rows = np.empty((width, 3), np.float32)
-        for j in range(width):
-            for c in range(3):
-                rows[j, c] = src[k * i, j, c]
-        for p in range(1, k):
-            for j in range(width):
-                for c in range(3):
-                    rows[j, c] += src[k * i + p, j, c]
-        for j in range(width):
-            for c in range(3):
-                rows[j, c] *= scale
-        for j in range(dst.shape[1]):
-            for c in range(3):
-                total = rows[k * j, c]
-                for q in range(1, k):
-                    total += rows[k * j + q, c]
-                dst[i, j, c] = total
+def pyramid(plate, k, levels, flat):
+    """The flat bordered pyramid's levels (mipmap.build_pyramid) in one call: levels (n, 3)
+    int64 holds each level's row offset in flat, its height and width, from the first, the
+    means of the (H, W, 3) plate's k x k blocks (k = 2: halved, else its sides multiples of
+    k), to the last, each the one before halved. The first FUSED levels are made in stripes
+    over the cores — a stripe is one row of the last of them, made from the rows above it
+    while they are in the cache; the small rest one after the other."""
+    n = levels.shape[0]
+    depth = min(n, FUSED)
+    for n_i in prange(levels[depth - 1, 1]):
+        i = np.int64(n_i)
+        rows = np.empty((plate.shape[1] if k > 2 else 0, 3), np.float32)
+        for m in range(depth):
+            span = np.int64(1) << (depth - 1 - m)
+            level = _bordered(flat, levels, m)
+            for r in range(i * span, min((i + 1) * span, levels[m, 1])):
+                if m > 0:
+                    above = _bordered(flat, levels, m - 1)
+                    _halve_row(above, 1, levels[m - 1, 1], levels[m - 1, 2], r, level, 1)
+                elif k == 2:
+                    _halve_row(plate, 0, plate.shape[0], plate.shape[1], r, level, 1)
+                else:
+                    _blocks_row(plate, k, r, level, rows)
+    for m in range(n):
+        level = _bordered(flat, levels, m)
+        if m >= depth:
+            above = _bordered(flat, levels, m - 1)
+            for i in range(levels[m, 1]):
+                _halve_row(above, 1, levels[m - 1, 1], levels[m - 1, 2], i, level, 1)
+        _border(level)

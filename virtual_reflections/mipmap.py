@@ -116,6 +116,9 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, 
     flat = np.empty((int(offsets[-1]), 3), dtype=np.float32) if out is None else out
     direct = 2 <= first < len(shapes) and h % (1 << first) == 0 and w % (1 << first) == 0
     skip = first if direct else 0
+    if len(shapes) > 1 and (direct or first <= 1) and pyramid_backend() == "numba":
+        _compiled(plate, shapes, offsets, max(skip, 1), flat)
+        return flat
     previous = plate
     for i, (lh, lw) in enumerate(shapes):
         if 0 < i < skip:
@@ -139,16 +142,24 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, 
     return flat
 
 
+def _compiled(plate: np.ndarray, shapes, offsets, start: int, flat: np.ndarray) -> None:
+    """`build_pyramid` with Numba's kernel: level 0 copied when it is stored, the levels from
+    `start` (the plate's 2^start x 2^start block means) on made in one call, the same bits."""
+    h, w = shapes[0]
+    if offsets[1] > 0:  # level 0 stored
+        level0 = flat[: offsets[1]].reshape(h + 2, w + 2, 3)
+        for_blocks(lambda a, b: np.copyto(level0[1:-1, 1:-1][a:b], plate[a:b]), h, min_rows=128)
+        _fill_border(level0)
+    levels = np.array([(offsets[i], lh, lw) for i, (lh, lw) in enumerate(shapes) if i >= start])
+    run(kernels().pyramid, np.ascontiguousarray(plate), 1 << start, levels.astype(np.int64), flat)
+
+
 def _blocks(src: np.ndarray, dst: np.ndarray, k: int) -> None:
     """dst (h / k, w / k, 3) = the means of src's (h, w, 3) k x k blocks (h, w multiples of
     k): OpenCV's area resize, or k rows summed and scaled by 1 / k^2 (exact), then k
     columns added channel by channel, in blocks of rows over the cores (as `_halve`)."""
     h, w, _ = src.shape
-    use = pyramid_backend()
-    if use == "numba":
-        run(kernels().block_means, src, dst, k)
-        return
-    if use == "opencv":
+    if pyramid_backend() == "opencv":
         cv2().resize(src, (w // k, h // k), dst=dst, interpolation=cv2().INTER_AREA)
         return
 

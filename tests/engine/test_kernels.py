@@ -74,21 +74,32 @@ def test_compiled_maps_follow_a_changed_plate(monkeypatch):
     assert np.abs(fast - ref).max() <= 4e-6 * float(np.abs(ref).max())
 
 
+PYRAMIDS = [  # (h, w, levels, first) with a level to store
+    (h, w, levels, first)
+    for h, w in [(8, 8), (7, 5), (1, 6), (5, 1), (37, 50), (64, 40), (36, 52)]
+    for levels in (None, 2, 5)
+    for first in (0, 1, 2, 3)
+    if first < len(level_shapes(h, w, levels))
+]
+
+
 @needs_numba
-@pytest.mark.parametrize("h, w", [(8, 8), (7, 5), (1, 6), (5, 1), (37, 50)])
-@pytest.mark.parametrize("first", [0, 2])
-def test_compiled_pyramid_is_numpys_to_the_bit(monkeypatch, h, w, first):
-    """The compiled halving and block means do NumPy's float32 arithmetic in NumPy's order."""
+@pytest.mark.parametrize("h, w, levels, first", PYRAMIDS)
+def test_compiled_pyramid_is_numpys_to_the_bit(monkeypatch, h, w, levels, first):
+    """The compiled pyramid (its levels made in stripes in one call, the plate's block means
+    straight to the first stored level when its sides allow, the halving otherwise) does
+    NumPy's float32 arithmetic in NumPy's order, borders included."""
     plate = np.random.default_rng(h * w).random((h, w, 3), dtype=np.float32)
     monkeypatch.setenv("VR_GATHER", "numba")
-    fast = build_pyramid(plate, first=first)
+    fast = build_pyramid(plate, levels, first=first)
     monkeypatch.setenv("VR_GATHER", "numpy")
-    ref = build_pyramid(plate, first=first)
-    shapes = level_shapes(h, w)
+    ref = build_pyramid(plate, levels, first=first)
+    assert fast.shape == ref.shape
+    shapes = level_shapes(h, w, levels)
     for level in range(first, len(shapes)):
         got = level_view(fast, shapes, level, first)
-        want = level_view(ref, shapes, level, first)
-        assert np.array_equal(got, want), level
+        assert np.array_equal(got, level_view(ref, shapes, level, first)), level
+    assert np.array_equal(fast, ref)  # the borders too
 
 
 def test_without_numba_the_engine_falls_back(monkeypatch):
