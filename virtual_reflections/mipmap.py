@@ -128,8 +128,7 @@ def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, 
             stored = flat[offsets[i] : offsets[i + 1]].reshape(lh + 2, lw + 2, 3)
         if i == 0:
             if stored is not None:
-                level0 = stored[1:-1, 1:-1]
-                for_blocks(lambda a, b, d=level0: np.copyto(d[a:b], plate[a:b]), h, min_rows=128)
+                _copy_plate(plate, stored)
         else:
             inner = stored[1:-1, 1:-1] if stored is not None else np.empty((lh, lw, 3), np.float32)
             if i == skip:
@@ -148,10 +147,16 @@ def _compiled(plate: np.ndarray, shapes, offsets, start: int, flat: np.ndarray) 
     h, w = shapes[0]
     if offsets[1] > 0:  # level 0 stored
         level0 = flat[: offsets[1]].reshape(h + 2, w + 2, 3)
-        for_blocks(lambda a, b: np.copyto(level0[1:-1, 1:-1][a:b], plate[a:b]), h, min_rows=128)
+        _copy_plate(plate, level0)
         _fill_border(level0)
     levels = np.array([(offsets[i], lh, lw) for i, (lh, lw) in enumerate(shapes) if i >= start])
     run(kernels().pyramid, np.ascontiguousarray(plate), 1 << start, levels.astype(np.int64), flat)
+
+
+def _copy_plate(plate: np.ndarray, level0: np.ndarray) -> None:
+    """The plate into the inside of the bordered level 0, in blocks of rows over the cores."""
+    inner = level0[1:-1, 1:-1]
+    for_blocks(lambda a, b: np.copyto(inner[a:b], plate[a:b]), plate.shape[0], min_rows=128)
 
 
 def _blocks(src: np.ndarray, dst: np.ndarray, k: int) -> None:
