@@ -296,16 +296,16 @@ def _blocks_row(src, k, i, dst, rows):
     scratch row (contiguous reads of the plate: 1.5x faster than block by block)."""
     scale = np.float32(1.0 / (k * k))
     width = src.shape[1]
-    total = rows.reshape(3 * width)  # whole rows as flat runs of floats: vectorised
+    summed = rows.reshape(3 * width)  # whole rows as flat runs of floats: vectorised
     top = src[k * i].reshape(3 * width)
     for t in range(3 * width):
-        total[t] = top[t]
+        summed[t] = top[t]
     for p in range(1, k):
         row = src[k * i + p].reshape(3 * width)
         for t in range(3 * width):
-            total[t] += row[t]
+            summed[t] += row[t]
     for t in range(3 * width):
-        total[t] *= scale
+        summed[t] *= scale
     for j in range(width // k):
         for c in range(3):
             total = rows[k * j, c]
