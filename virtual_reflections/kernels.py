@@ -47,7 +47,7 @@ def _weights(x, y, share):
 def _flat(array):
     """A C-contiguous array's values along one axis, read below with unsigned indices: no
     fix-up for negative indices and no multiply by a row length per read (the trilinear
-    kernel 7.4 against 9.4 ms)."""
+    kernel 7.1 against 9.4 ms, docs/benchmarks.md)."""
     return array.reshape(array.size)
 
 
@@ -79,8 +79,8 @@ def _put(out, t, v0, v1, v2):
 
 @njit(inline="always")
 def _g(geometry, r, j, k):
-    """geometry[r, j, k] of the `_flat` (runs, 3, 5) geometry."""
-    return geometry[_u(r * 15 + j * 5 + k)]
+    """geometry[r, j, k] of the `_flat` (runs, 3, 5) geometry (`_trilinear`)."""
+    return geometry[_u((r * 3 + j) * 5 + k)]
 
 
 @njit(inline="always")
@@ -131,10 +131,10 @@ def trilinear_map(x, y, upper, shares, rank, starts, geometry, source, plate, ou
     blocks = np.empty(starts[-1] // ROW, np.int64)
     for r in range(starts.size - 1):
         blocks[starts[r] // ROW : starts[r + 1] // ROW] = r
-    width = rank.shape[1]
+    height, width = rank.shape[0], rank.shape[1]
     rank, geometry, source, plate = _flat(rank), _flat(geometry), _flat(source), _flat(plate)
     out = _flat(out)
-    for i in prange(out.size // (3 * width)):
+    for i in prange(height):
         _trilinear_row(i, width, blocks, x, y, upper, shares, rank, geometry, source, plate, out)
 
 
