@@ -57,7 +57,7 @@ import numpy as np
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
 from ..virtual_reflections.layouts import latlong_directions
 from ..virtual_reflections.plainexr import read_channels
-from . import bounds, generate, images, maps, shading
+from . import bounds, generate, images, maps, shading, traced_pass
 from .plate import NO_PLATE, scene_plate
 
 R_MAX = 8  # the most passes "auto" renders unless told otherwise
@@ -230,6 +230,23 @@ def pass_steps(
             source = over(rgba[np.ix_(ys, xs)], plate)
             inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
             _set_border(scene.render, border, (h, w))
+            if neighbours and self_mask and traced_pass.applies(scene, done):
+                # Camera View + Ground under Cycles: pass 2 ray traces every level at once
+                started = time.perf_counter()
+                with traced_pass.traced(scene, done):
+                    yield generate.Step(
+                        label(2) + "rendering (ray traced)",
+                        1.4 / limit,
+                        render=(scene.name, layer.name),
+                    )
+                    new, _ = _read_render(scene, layer, path)
+                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
+                previous, composite = composite, over(rgba, plate_small)
+                seconds = time.perf_counter() - started
+                notes = (TRACED_NOTE,) if limit > 2 and passes != "auto" else ()
+                change = _change(composite, previous, coverage)
+                reports.append(PassReport(2, seconds, change, border, 0.0, seconds, notes))
+                return composite, rgba, reports
             for k in range(2, limit + 1):
                 started = time.perf_counter()
                 # The previous composite is the new plate ...
@@ -276,6 +293,10 @@ def pass_steps(
     return composite, rgba, reports
 
 
+TRACED_NOTE = (
+    "Pass 2 was ray traced: it holds every level of inter-reflection the scene's glossy "
+    "bounces allow, so later passes would not change it"
+)
 CAMERA_NOTE = (
     "Camera View treats the surroundings as distant, so nearby objects show little of each "
     "other; the Paper method puts a neighbour on the side of the map that faces it"

@@ -123,7 +123,7 @@ def ensure_lookup_group():
     return group
 
 
-def _env_lookup(nodes, links, direction, image, location):
+def env_lookup(nodes, links, direction, image, location):
     """Lookup group + Environment Texture of ``image`` along the world ``direction`` socket."""
     x, y = location
     lookup = new_node(nodes, "ShaderNodeGroup", "VR Camera LatLong", (x, y))
@@ -188,7 +188,7 @@ def ensure_reflection_group(mode, image, ground=None):
     reflect.operation = "REFLECT"
     links.new(view.outputs["Vector"], reflect.inputs[0])
     links.new(geometry.outputs["Normal"], reflect.inputs[1])
-    env = _env_lookup(nodes, links, reflect.outputs["Vector"], image, (-300, 300))
+    env = env_lookup(nodes, links, reflect.outputs["Vector"], image, (-300, 300))
     if ground is not None:
         position = geometry.outputs["Position"]
         box = tuple(g_in.outputs[name] for name in BOX_INPUTS)

@@ -455,3 +455,95 @@ def test_a_run_refused_for_unsaved_map_files_leaves_the_scene_as_it_was(interref
         bpy.ops.vr.render_passes(passes=2)
     assert "Traceback" not in str(error.value), str(error.value)  # the report, not a crash
     assert scene_state() == before
+
+
+# --- the ray-traced pass (traced_pass.py): Camera View + Ground, Replace, Cycles ------------------
+
+
+def ground_scene(glossy_bounces=None):
+    """Camera View + Ground in the Replace look: two spheres side by side, 10 cm apart, standing
+    on the ground (the plane through their lowest point) before the colourful plate."""
+    scene = make_scene("REPLACE")
+    scene.virtual_reflections.method = "GROUND"
+    if glossy_bounces is not None:
+        scene.cycles.glossy_bounces = glossy_bounces
+    plate_image(colourful_plate())
+    return scene, [add_sphere("Left", (-0.85, 0.0, 0.0)), add_sphere("Right", (0.85, 0.0, 0.0))]
+
+
+def traced_leftovers():
+    names = ("VR Traced Dome", "VR Traced Mirror")
+    return [
+        block.name
+        for blocks in (bpy.data.objects, bpy.data.meshes, bpy.data.materials)
+        for block in blocks
+        if block.name.startswith(names)
+    ]
+
+
+def test_the_default_look_is_ray_traced_in_pass_two(interreflect):
+    scene, objects = ground_scene(glossy_bounces=1)
+    assert interreflect.traced_pass.applies(scene, []) is False
+    first, rgba, _ = run(interreflect, objects, 1)
+    assert interreflect.traced_pass.applies(scene, objects)
+    after_one = scene_state()
+    # the spheres' pixels above and below their centres (the camera looks level at them)
+    upper = rgba[..., 3] > 0.5
+    lower = upper.copy()
+    upper[H // 2 :], lower[: H // 2 + 1] = False, False
+    composite, _, reports = run(interreflect, objects, "auto")
+    # One traced render holds every level: auto stops after it, and no map is rebuilt.
+    assert [r.index for r in reports] == [1, 2] and reports[1].maps_seconds == 0.0
+    assert reports[1].change > 2e-3  # the spheres show each other
+    assert reports[1].warnings == ()
+    # The dome and the mirrors are gone, every slot and map as pass 1 left them; the glossy
+    # bounces (raised to 4 for the render) are the scene's again.
+    assert traced_leftovers() == [] and scene_state() == after_one
+    assert scene.cycles.glossy_bounces == 1
+    # Blind to each other, the traced mirrors render pass 1's look: the same upper halves (the
+    # dome reproduces the material's lookup), and below a ground darker between the two (each
+    # sphere's contact shadow now darkens the ground the other reflects). Seeing each other,
+    # the upper halves change too.
+    for obj in objects:
+        obj.visible_glossy = False
+    blind, _, _ = run(interreflect, objects, "auto")
+    assert np.abs(blind - first)[upper].mean() < 1e-3
+    assert np.abs(composite - first)[upper].mean() > 5e-3
+    assert blind[lower].mean() < first[lower].mean() - 0.01
+    # Asked for more passes, it says why it stopped at two.
+    for obj in objects:
+        obj.visible_glossy = True
+    _, _, asked = run(interreflect, objects, 3)
+    assert len(asked) == 2 and asked[1].warnings == (interreflect.TRACED_NOTE,)
+
+
+@pytest.mark.parametrize(
+    "change",
+    ["method PAPER", "method CAMERA", "combine MODULATE", "engine BLENDER_WORKBENCH"],
+)
+def test_other_methods_looks_and_engines_keep_the_papers_passes(interreflect, change):
+    scene, objects = ground_scene()
+    attr, value = change.split()
+    owner = scene.render if attr == "engine" else scene.virtual_reflections
+    setattr(owner, attr, value)
+    generate = interreflect.generate
+    generate.generate(scene, bpy.context.evaluated_depsgraph_get(), objects)
+    assert interreflect.traced_pass.applies(scene, objects) is False
+
+
+def test_a_run_stopped_in_the_traced_render_puts_the_scene_back(interreflect):
+    from vr_addon_under_test.operators import reflection_snapshot
+
+    scene, objects = ground_scene()
+    generate = interreflect.generate
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    before = scene_state()
+    snapshot = reflection_snapshot.Snapshot(scene, objects)
+    pixels = generate.plate.pixels(scene)[0]
+    job = generate.Job(interreflect.pass_steps(scene, depsgraph, objects, pixels, 2), "Passes")
+    while job.stage != "Pass 2 of 2: rendering (ray traced)":
+        assert job.advance(wait=1.0) is None
+    assert "VR Traced Dome" in bpy.data.objects  # the dome is up for the render
+    job.stop()
+    snapshot.restore()
+    assert traced_leftovers() == [] and scene_state() == before

@@ -1,0 +1,266 @@
+"""The ray-traced pass: the default look's objects seeing each other in one Cycles render.
+
+The paper's passes (interreflect.py) rebuild each object's map from the previous composite,
+which shows a neighbour as the camera saw it. Against a path-traced truth that brings Camera
+View + Ground nothing (docs/scenes3d.md, Inter-reflections). In this pass, instead, every
+reflective object is a real mirror for one render, and whatever a mirror's ray meets that is
+not another object is read by the default's own lookup: the map along the ray, the ground where
+the ray meets it read on the plate, darkened by every reflective object's contact shadow. The
+lookup needs the ray's origin, which a world shader does not know; so it sits on a dome (a
+sphere far around the scene, seen by glossy rays only) whose shader recovers the origin from
+the hit point and the ray's length:
+
+    origin = Position + Incoming * Ray Length,   direction = -Incoming
+
+Blind to each other, the mirrors render exactly the one-pass look (the dome reproduces the
+material's lookup); seeing each other, Cycles adds every level of inter-reflection up to the
+scene's glossy bounces in one render.
+
+It applies to Camera View + Ground in the Replace look under Cycles (`applies`): the other
+looks shade with the object's own material and the other methods' maps are each object's own
+(the paper's segmentation), so they keep the paper's passes. Everything here is temporary:
+the dome, its material and the mirror materials are made for the render and deleted after it,
+and every slot, visibility flag and bounce count put back (`traced`), also on errors or Esc.
+While it renders, other glossy objects inside the reflective objects' render border see the
+dome where they would see the world.
+"""
+
+import contextlib
+
+import bpy
+from mathutils import Vector
+
+from . import ground_nodes, reflection_nodes, shading
+from .images import CREATED
+
+DOME = "VR Traced Dome"
+MIRROR = "VR Traced Mirror"
+MIN_RADIUS = 1000.0  # m: the dome's radius at least, and 20 x the farthest object's distance
+MIN_GLOSSY_BOUNCES = 4  # raised to this for the render when the scene has fewer
+# the dome is seen by glossy rays only: no camera, lighting, shadows, transmission or volumes
+DOME_HIDDEN_FROM = (
+    "visible_camera",
+    "visible_diffuse",
+    "visible_shadow",
+    "visible_transmission",
+    "visible_volume_scatter",
+)
+
+
+def applies(scene, objects) -> bool:
+    """True when the ray-traced pass replaces the paper's passes for ``objects``: Cycles,
+    Camera View + Ground, every object in the Replace look with the ground read per point."""
+    if scene.render.engine != "CYCLES" or scene.virtual_reflections.method != "GROUND":
+        return False
+    return bool(objects) and all(
+        shading.mode_of(obj) == "REPLACE" and _ground_node(_group(obj)) is not None
+        for obj in objects
+    )
+
+
+def _group(obj):
+    record = obj.get(shading.RECORD)
+    return record.get("group") if record is not None else None
+
+
+def _ground_node(group):
+    """The ground lookup node of a reflection group (None: no ground per point)."""
+    if group is None:
+        return None
+    for node in group.nodes:
+        tree = getattr(node, "node_tree", None)
+        if node.bl_idname == "ShaderNodeGroup" and tree is not None:
+            if tree.get(CREATED) == "ground":
+                return node
+    return None
+
+
+def _ground_of(group):
+    """The GroundLookup ``group`` was built with, read off its nodes."""
+    lookup = _ground_node(group)
+    plate = next(n for n in group.nodes if n.bl_idname == "ShaderNodeTexImage")
+    frames = None
+    if plate.image is not None and plate.image.source in ("SEQUENCE", "MOVIE"):
+        user = plate.image_user
+        frames = (user.frame_duration, user.frame_start, user.frame_offset, user.use_cyclic)
+    value = lookup.inputs
+    return ground_nodes.GroundLookup(
+        plate.image,
+        value["Height"].default_value,
+        tuple(value["Focal"].default_value)[:2],
+        tuple(value["Centre"].default_value)[:2],
+        value["Aspect"].default_value,
+        frames,
+    )
+
+
+def _world_box(obj, origin):
+    """(centre, half size) of ``obj``'s world-space bounding box (axis-aligned), the centre
+    relative to ``origin``."""
+    corners = [obj.matrix_world @ Vector(c) for c in obj.bound_box]
+    low = [min(c[i] for c in corners) for i in range(3)]
+    high = [max(c[i] for c in corners) for i in range(3)]
+    centre = tuple((a + b) / 2 - o for a, b, o in zip(low, high, origin))
+    return centre, tuple((b - a) / 2 for a, b in zip(low, high))
+
+
+def _vector(nodes, links, operation, a, b=None):
+    node = nodes.new("ShaderNodeVectorMath")
+    node.operation = operation
+    links.new(a, node.inputs[0])
+    if b is not None:
+        links.new(b, node.inputs[1])
+    return node
+
+
+def _dome_material(image, ground, boxes):
+    """Emission of the default's lookup along each ray that meets the dome, from its origin.
+    ``boxes``: (centre, half size) of every reflective object in the dome's space."""
+    material = bpy.data.materials.new(DOME)
+    material[CREATED] = "traced dome"
+    if material.node_tree is None:  # 4.x; 5.x materials always have their tree
+        material.use_nodes = True
+    if hasattr(material, "cycles") and hasattr(material.cycles, "emission_sampling"):
+        material.cycles.emission_sampling = "NONE"  # lights nothing: it is only seen
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    path = nodes.new("ShaderNodeLightPath")
+    back = _vector(nodes, links, "SCALE", geometry.outputs["Incoming"])
+    links.new(path.outputs["Ray Length"], back.inputs["Scale"])
+    origin = _vector(nodes, links, "ADD", geometry.outputs["Position"], back.outputs[0])
+    direction = _vector(nodes, links, "SCALE", geometry.outputs["Incoming"])
+    direction.inputs["Scale"].default_value = -1.0
+    ray = {"Position": origin.outputs[0], "Direction": direction.outputs[0]}
+
+    colour = reflection_nodes.env_lookup(nodes, links, ray["Direction"], image, (0, 0))
+    lookup = nodes.new("ShaderNodeGroup")
+    lookup.node_tree = ground_nodes.ensure_ground_group()
+    for name, socket in ray.items():
+        links.new(socket, lookup.inputs[name])
+    lookup.inputs["Height"].default_value = ground.height
+    lookup.inputs["Focal"].default_value = (*ground.focal, 0.0)
+    lookup.inputs["Centre"].default_value = (*ground.centre, 0.0)
+    lookup.inputs["Aspect"].default_value = ground.aspect
+    plate = nodes.new("ShaderNodeTexImage")
+    plate.image, plate.interpolation, plate.extension = ground.plate, "Linear", "EXTEND"
+    if ground.frames is not None:
+        user = plate.image_user
+        user.frame_duration, user.frame_start, user.frame_offset, user.use_cyclic = ground.frames
+        user.use_auto_refresh = True
+    links.new(lookup.outputs["UV"], plate.inputs["Vector"])
+    seen = plate.outputs["Color"]
+    for centre, half in boxes:  # every reflective object's contact shadow on the ground
+        shade = nodes.new("ShaderNodeGroup")
+        shade.node_tree = ground_nodes.ensure_occlusion_group()
+        for name, socket in ray.items():
+            links.new(socket, shade.inputs[name])
+        shade.inputs["Height"].default_value = ground.height
+        shade.inputs["Box Centre"].default_value = centre
+        shade.inputs["Box Half Size"].default_value = half
+        scaled = _vector(nodes, links, "SCALE", seen)
+        links.new(shade.outputs["Sky"], scaled.inputs["Scale"])
+        seen = scaled.outputs[0]
+    # colour + weight (ground - colour): the material's own mix (ground_nodes.mix_ground)
+    step = _vector(nodes, links, "SUBTRACT", seen, colour)
+    weighted = _vector(nodes, links, "SCALE", step.outputs[0])
+    links.new(lookup.outputs["Weight"], weighted.inputs["Scale"])
+    total = _vector(nodes, links, "ADD", colour, weighted.outputs[0])
+    emission = nodes.new("ShaderNodeEmission")
+    links.new(total.outputs[0], emission.inputs["Color"])
+    output = nodes.new("ShaderNodeOutputMaterial")
+    links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def _sphere_mesh(radius):
+    """A UV sphere mesh (64 x 32) of ``radius`` about its origin."""
+    import bmesh  # Blender's own module, importable once bpy is
+
+    mesh = bpy.data.meshes.new(DOME)
+    bm = bmesh.new()
+    try:
+        bmesh.ops.create_uvsphere(bm, u_segments=64, v_segments=32, radius=radius)
+        bm.to_mesh(mesh)
+    finally:
+        bm.free()
+    return mesh
+
+
+def _mirror_material(strength):
+    """A perfect mirror of the Replace look's strength."""
+    material = bpy.data.materials.new(MIRROR)
+    material[CREATED] = "traced mirror"
+    if material.node_tree is None:
+        material.use_nodes = True
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    glossy = nodes.new("ShaderNodeBsdfGlossy")
+    glossy.inputs["Color"].default_value = (strength, strength, strength, 1.0)
+    glossy.inputs["Roughness"].default_value = 0.0
+    output = nodes.new("ShaderNodeOutputMaterial")
+    links.new(glossy.outputs["BSDF"], output.inputs["Surface"])
+    return material
+
+
+@contextlib.contextmanager
+def traced(scene, objects):
+    """While inside: ``objects`` (with Generate's Replace look, `applies`) are mirrors of the
+    look's strength, a dome around the scene gives every ray that meets nothing else the
+    default's lookup, the scene's ground object and shadow catchers are hidden from glossy
+    rays (the dome reads the ground from the plate), and the glossy bounces are at least
+    MIN_GLOSSY_BOUNCES. Everything is put back and what was made deleted on leaving."""
+    group = _group(objects[0])
+    image = shading.map_of(objects[0])
+    ground = _ground_of(group)
+    centre = scene.camera.matrix_world.translation.copy()
+    far = max(
+        (obj.matrix_world @ Vector(c) - centre).length for obj in objects for c in obj.bound_box
+    )
+    made = []  # datablocks to delete, last made first
+    slots = []  # (slot, material) to put back
+    flags = []  # (owner, attribute, value) to put back
+    try:
+        material = _dome_material(image, ground, [_world_box(o, centre) for o in objects])
+        made.append(material)
+        mesh = _sphere_mesh(max(MIN_RADIUS, 20.0 * far))
+        made.append(mesh)
+        mesh.materials.append(material)
+        dome = bpy.data.objects.new(DOME, mesh)
+        made.append(dome)
+        dome.location = centre
+        scene.collection.objects.link(dome)
+        for attr in DOME_HIDDEN_FROM:
+            setattr(dome, attr, False)
+        mirror = _mirror_material(scene.virtual_reflections.strength)
+        made.append(mirror)
+        for obj in objects:
+            for slot in obj.material_slots:
+                slots.append((slot, slot.material))
+                slot.material = mirror
+        chosen = scene.virtual_reflections.ground_object
+        ours = set(objects)
+        for obj in scene.objects:
+            hides_ground = obj is chosen or getattr(obj, "is_shadow_catcher", False)
+            if obj not in ours and hides_ground and obj.visible_glossy:
+                flags.append((obj, "visible_glossy", True))
+                obj.visible_glossy = False
+        cycles = scene.cycles
+        for attr in ("glossy_bounces", "max_bounces"):
+            value = getattr(cycles, attr)
+            if value < MIN_GLOSSY_BOUNCES:
+                flags.append((cycles, attr, value))
+                setattr(cycles, attr, MIN_GLOSSY_BOUNCES)
+        yield dome
+    finally:
+        for slot, material in reversed(slots):
+            slot.material = material
+        for owner, attr, value in reversed(flags):
+            setattr(owner, attr, value)
+        for block in reversed(made):  # the dome object before its mesh and material
+            if isinstance(block, bpy.types.Object):
+                bpy.data.objects.remove(block)
+            elif isinstance(block, bpy.types.Mesh):
+                bpy.data.meshes.remove(block)
+            else:
+                bpy.data.materials.remove(block)
