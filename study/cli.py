@@ -13,7 +13,7 @@
 (docs/benchmarks.md); `scenes` renders 3D scenes in Cycles with the bpy module and scores every
 method against the path-traced truth (docs/scenes3d.md); `sky-prior` derives the ground
 method's sky gain from the HDRIs (docs/ground.md); `traced` renders the inter-reflection cases
-with the default look ray traced, a prototype outside the add-on (docs/scenes3d.md). Bad input
+with the add-on's ray-traced pass, seeing and blind (docs/scenes3d.md). Bad input
 prints one line on stderr and exits with code 2.
 """
 
@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     p = sub.add_parser(
-        "traced", help="the inter-reflection cases with the default look ray traced (a prototype)"
+        "traced", help="the inter-reflection cases with the ray-traced pass, seeing and blind"
     )
     p.add_argument("--quick", action="store_true", help="the two spheres only")
     p.add_argument("--out", help="write DIR/scenes3d_traced.json and its table in DIR/scenes3d.md")
@@ -167,7 +167,7 @@ def main(argv=None) -> int:
             try:
                 from .scenes3d import traced
             except ImportError as exc:
-                raise UsageError(f"the traced prototype needs the bpy module: {exc}") from exc
+                raise UsageError(f"the traced cases need the bpy module: {exc}") from exc
             traced.run_command(quick=args.quick, out=args.out)
         else:
             from .bench import run_bench, run_sweep

@@ -82,7 +82,7 @@ def run_scene(spec, addon, work: pathlib.Path, width, samples, log):
         for obj in mirrors:
             obj.visible_glossy = False
         try:
-            rgba[BLIND] = render(scene, work / "blind prototype.exr", border)
+            rgba[BLIND] = render(scene, work / "traced blind.exr", border)
         finally:
             for obj in mirrors:
                 obj.visible_glossy = True

@@ -1,9 +1,9 @@
-"""The ray-traced prototype (`python -m study traced`, study/scenes3d/traced.py): the quick case
-(two mirror spheres side by side, 320 x 180, 32 samples) through the bpy module, and the claims
-of docs/scenes3d.md's "Ray-traced inter-reflections": with the default look ray traced the
-mirrors show each other where the truth does (the inter pixels much nearer the truth than the
-product's one pass and than the same mirrors blind to each other), and their pixels as a whole
-are no further from the truth. About 10 s (bpy 4.5); skipped only when bpy cannot be imported."""
+"""The ray-traced pass seen from inside (`python -m study traced`, study/scenes3d/traced.py):
+the quick case (two mirror spheres side by side, 320 x 180, 32 samples) through the bpy module,
+and the claims of docs/scenes3d.md's "The ray-traced pass: seeing against blind": traced, the
+mirrors show each other where the truth does (the inter pixels much nearer the truth than one
+pass and than the same mirrors blind to each other), and their pixels as a whole are no further
+from the truth. About 10 s (bpy 4.5); skipped only when bpy cannot be imported."""
 
 import json
 
@@ -14,7 +14,7 @@ NOISE_DB = 0.1  # one run at 32 samples: differences under this on all the pixel
 
 @pytest.fixture(scope="module")
 def traced_quick(tmp_path_factory):
-    pytest.importorskip("bpy", reason="the prototype renders with the bpy module")
+    pytest.importorskip("bpy", reason="it renders with the bpy module")
     from study.scenes3d import traced
 
     out = tmp_path_factory.mktemp("traced")
