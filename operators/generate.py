@@ -7,6 +7,7 @@ Generate runs the map pipeline (pipeline.py) for each object, stores each map as
 
 import functools
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -15,6 +16,8 @@ import bpy
 from ..virtual_reflections.composite import union_box
 from . import maps, pipeline, plate, shading, world
 from .choices import map_width
+
+RENDER_START_GRACE = 5.0  # s: an invoked render job not seen running by then counts as over
 
 
 def candidates(context):
@@ -237,6 +240,9 @@ class Job:
         self._outcome = None  # (result, exception) of the work in the thread
         self._rendering = False
         self._cancelled = False
+        self._render_ended = False  # render_complete or render_cancel has been called
+        self._render_seen = False  # the render job was seen running
+        self._render_started = 0.0
         _running = self
 
     @property
@@ -261,7 +267,7 @@ class Job:
         for events, so a thread advances mostly while the main thread waits for it here
         (without it, the run took 2-3x as long; docs/benchmarks.md)."""
         if self._rendering:
-            if bpy.app.is_job_running("RENDER"):
+            if not self._render_over():
                 return None
             self._end_render()
             if self._cancelled or self.stop_requested:
@@ -297,12 +303,28 @@ class Job:
             raise
         return None
 
+    def _render_over(self) -> bool:
+        """Has the step's render job ended? Blender starts an invoked render job on a later
+        turn of its event loop, so "no render job running" right after the invoke means not
+        yet begun: it is over once a render_complete or render_cancel handler has run, or once
+        it was seen running and is no longer; one that never shows within RENDER_START_GRACE
+        seconds counts as over (reading its image then fails, with a message)."""
+        if bpy.app.is_job_running("RENDER"):
+            self._render_seen = True
+            return False
+        if self._render_ended or self._render_seen or bpy.app.background:
+            return True
+        return time.monotonic() - self._render_started > RENDER_START_GRACE
+
     def _start_render(self, scene, layer):
         if bpy.app.is_job_running("RENDER"):
             self.stop()
             raise ValueError("Blender is rendering already: wait for that render to end")
         self._cancelled = False
+        self._render_ended = self._render_seen = False
+        self._render_started = time.monotonic()
         bpy.app.handlers.render_cancel.append(self._on_cancel)
+        bpy.app.handlers.render_complete.append(self._on_complete)
         self._rendering = True
         try:
             started = bpy.ops.render.render(
@@ -316,12 +338,17 @@ class Job:
             raise ValueError("Blender could not start the render")
 
     def _on_cancel(self, *_args):
-        self._cancelled = True
+        self._cancelled = self._render_ended = True
+
+    def _on_complete(self, *_args):
+        self._render_ended = True
 
     def _end_render(self):
         self._rendering = False
         while self._on_cancel in bpy.app.handlers.render_cancel:
             bpy.app.handlers.render_cancel.remove(self._on_cancel)
+        while self._on_complete in bpy.app.handlers.render_complete:
+            bpy.app.handlers.render_complete.remove(self._on_complete)
 
     def _work(self, work):
         try:

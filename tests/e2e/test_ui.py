@@ -325,6 +325,7 @@ def setup():
         root + "/sample_scenes/plates/courtyard.jpg")
     scene.virtual_reflections.resolution = "256"
     scene.virtual_reflections.combine = "REPLACE"
+    scene.virtual_reflections.method = "CAMERA"  # the paper's passes: a map built per pass
     scene.render.engine = "CYCLES"
     scene.render.resolution_x, scene.render.resolution_y = 160, 90
     scene.cycles.samples = 4
@@ -360,6 +361,8 @@ def stop_in(stage, key, then):
     bpy.app.timers.register(guarded(wait_for_stage), first_interval=0.002)
 
 def full_run():
+    # the default method: pass 2 ray traced (traced_pass.py), the run ends after it
+    bpy.context.scene.virtual_reflections.method = "GROUND"
     result["invoke"] = invoke()
     open_panel()  # drawn as it runs
     bpy.app.timers.register(guarded(watch), first_interval=0.01)
@@ -387,8 +390,9 @@ def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(
     drawing, the stage in the panel and each render as Blender's render job (as F12). Esc in
     pass 2 -- after pass 1 attached the maps and rendered -- while the maps are built, and
     again while Blender renders (the run stops once that render ends), puts the scene back as
-    it was (materials, maps, pass indices, render settings); a full run ends with the
-    composite image and the report."""
+    it was (materials, maps, pass indices, render settings) -- both with Camera View,
+    whose passes build maps; a full run with the default method (its pass 2 ray traced) ends
+    after two passes with the composite image, the report and nothing of the traced pass left."""
     import shutil
 
     if shutil.which("xvfb-run") is None:
@@ -412,12 +416,14 @@ def test_inter_reflections_from_the_window_show_their_passes_and_esc_stops_them(
         assert stopped["after"] == result["before"], (key, stopped, result["before"])
     assert result["invoke"] == ["RUNNING_MODAL"]
     stages = result["stages"]
-    for k in (1, 2, 3):
-        assert f"Pass {k} of 3: rendering" in stages, stages
-    assert stages.index("Pass 1 of 3: rendering") < stages.index("Pass 3 of 3: rendering")
+    traced = "Pass 2 of 3: rendering (ray traced)"
+    assert "Pass 1 of 3: rendering" in stages and traced in stages, stages
+    assert stages.index("Pass 1 of 3: rendering") < stages.index(traced)
+    assert not any(s.startswith("Pass 3") for s in stages), stages
     assert result["render_job_seen"], result  # Blender's render job, not a blocking render
     assert result["composite"] == [160, 90], result
-    assert result["report"].startswith("3 pass(es)"), result["report"]
+    assert result["report"].startswith("2 pass(es)"), result["report"]
+    assert not any(m.startswith("VR Traced") for m in result["after_run"]["materials"]), result
     assert result["after_run"]["render"] == result["before"]["render"], result
     assert result["after_run"]["Left"][1][0][0] == "OBJECT", result  # the maps stay on
     assert result["drawn_running"] > 0, result
