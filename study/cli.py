@@ -6,15 +6,13 @@
     python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--split]
         [--out DIR]
     python -m study sky-prior
-    python -m study traced [--quick] [--out DIR]
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
 (docs/accuracy.md); `bench` times the engine's lookup tables against py360convert
 (docs/benchmarks.md); `scenes` renders 3D scenes in Cycles with the bpy module and scores every
 method against the path-traced truth (docs/scenes3d.md); `sky-prior` derives the ground
-method's sky gain from the HDRIs (docs/ground.md); `traced` renders the inter-reflection cases
-with the add-on's ray-traced pass, seeing and blind (docs/scenes3d.md). Bad input
-prints one line on stderr and exits with code 2.
+method's sky gain from the HDRIs (docs/ground.md). Bad input prints one line on stderr
+and exits with code 2.
 """
 
 from __future__ import annotations
@@ -123,11 +121,6 @@ def build_parser() -> argparse.ArgumentParser:
         "prior sets (found by a second render with the prior black) or on the rest",
     )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
-    p = sub.add_parser(
-        "traced", help="the inter-reflection cases with the ray-traced pass, seeing and blind"
-    )
-    p.add_argument("--quick", action="store_true", help="the two spheres only")
-    p.add_argument("--out", help="write DIR/scenes3d_traced.json and its table in DIR/scenes3d.md")
     return parser
 
 
@@ -163,12 +156,6 @@ def main(argv=None) -> int:
             from .sky_prior import run as run_sky_prior
 
             run_sky_prior()
-        elif args.command == "traced":
-            try:
-                from .scenes3d import traced
-            except ImportError as exc:
-                raise UsageError(f"the traced cases need the bpy module: {exc}") from exc
-            traced.run_command(quick=args.quick, out=args.out)
         else:
             from .bench import run_bench, run_sweep
 

@@ -403,7 +403,8 @@ def write_heldout(data, target, name) -> None:
 
 def write_inter(data, crops, target, name) -> None:
     """OUT/NAME.json, the contact sheet (truth, one pass and auto per method) and the
-    "Inter-reflections" block of OUT/scenes3d(_quick).md (appended when missing)."""
+    "Inter-reflections" and "traced" blocks of OUT/scenes3d(_quick).md (appended when
+    missing)."""
     from . import report
 
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
@@ -413,6 +414,11 @@ def write_inter(data, crops, target, name) -> None:
         report.contact_sheet_inter(data, crops, target / "images" / f"{name}_examples.png")
     md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
     report.add_block(md, "inter", "Inter-reflections", report.table_inter(data), data["command"])
+    traced = report.table_traced(data)
+    if traced:
+        report.add_block(
+            md, "traced", "The ray-traced pass: seeing against blind", traced, data["command"]
+        )
     print(
         f"wrote {target / (name + '.json')}, {md} and the charts in {target / 'images'}",
         file=sys.stderr,

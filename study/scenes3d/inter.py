@@ -52,6 +52,9 @@ INTER_THRESHOLD = 0.05  # display units: a pixel whose truth changes this much i
 PLATE_ITSELF = "(plate itself)"
 CEILING = "one pass, inter pixels exact"
 BLIND = "truth without inter-reflections"  # the mirrors blind to each other: a ceiling for 1 pass
+# the default's ray-traced pass with the mirrors blind to each other: its lookup alone, which
+# should score as one pass (what the tracing adds is auto minus this)
+TRACED_BLIND = "ray traced, mirrors blind"
 
 
 class InterAddon(Addon):
@@ -63,6 +66,7 @@ class InterAddon(Addon):
             f"{self.module.__name__}.operators.interreflect"
         )
         self.plate = importlib.import_module(f"{self.module.__name__}.operators.plate")
+        self.traced_pass = importlib.import_module(f"{self.module.__name__}.operators.traced_pass")
 
 
 def union_border(scene, camera, objects):
@@ -149,6 +153,7 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
                 "seconds": seconds,
             }
             addon.generate.remove_all()
+    traced_label = _traced_blind(scene, addon, objects, border, alone, shot)
 
     results, inter, crops = {}, {}, {}
     y0, y1, x0, x1 = crop
@@ -170,6 +175,9 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
         perfect = composites[f"{label}: {ONE}"].copy()
         perfect[region] = truth[region]
         passes[label][CEILING] = score(perfect, truth, mask, crop)
+    if traced_label is not None:
+        blind_traced = f"{traced_label}: {TRACED_BLIND}"
+        passes[traced_label][TRACED_BLIND] = dict(results[blind_traced], inter=inter[blind_traced])
     record = {
         "scene": spec.to_json(),
         "mirrors": len(objects),
@@ -196,6 +204,29 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
         f"{renders} renders)"
     )
     return record, crops
+
+
+def _traced_blind(scene, addon, objects, border, alone, shot):
+    """The default method's ray-traced pass rendered with the mirrors blind to each other (into
+    ``alone``); returns the method's label, or None when its pass is not traced."""
+    default = scene.virtual_reflections.bl_rna.properties["method"].default
+    label = dict(addon.methods)[default]
+    scene.virtual_reflections.method = default
+    report = addon.generate.generate(scene, bpy.context.evaluated_depsgraph_get(), objects)
+    try:
+        if not report.done or not addon.traced_pass.applies(scene, objects):
+            return None
+        with addon.traced_pass.traced(scene, objects):
+            for obj in objects:
+                obj.visible_glossy = False
+            try:
+                alone[f"{label}: {TRACED_BLIND}"] = shot(f"{label} {TRACED_BLIND}", border)
+            finally:
+                for obj in objects:
+                    obj.visible_glossy = True
+        return label
+    finally:
+        addon.generate.remove_all()
 
 
 def run_scenes(specs, work, width, samples, log):

@@ -356,6 +356,7 @@ ONE, PLAIN, AUTO = "one pass", "auto, maps as built", "auto"  # as inter.py (whi
 RUNS = (ONE, PLAIN, AUTO)
 BLIND = "truth without inter-reflections"
 CEILING = "one pass, inter pixels exact"
+TRACED_BLIND = "ray traced, mirrors blind"
 
 
 def inter_summary(data) -> dict:
@@ -450,6 +451,51 @@ def table_inter(data) -> str:
             f"{_fmt(e[ONE + ' inter'])} / {_fmt(e[PLAIN + ' inter'])} / "
             f"{_fmt(e[AUTO + ' inter'])} | {', '.join(map(str, e['passes']))} |"
         )
+    return "\n".join(lines) + "\n"
+
+
+def table_traced(data) -> str:
+    """The default method's ray-traced pass (its auto) against one pass and against the same
+    render with the mirrors blind to each other, per case and on average: PSNR / SSIM on all
+    the mirrors' pixels (PSNR on the inter px in brackets). Empty when no case traced it."""
+    method = data.get("default_method")
+    rows = [r for r in data["scenes"] if TRACED_BLIND in r["passes"].get(method, {})]
+    if not rows:
+        return ""
+    runs = (ONE, AUTO, TRACED_BLIND)
+
+    def cell(scores, inter):
+        return f"{_pair(scores)} ({_fmt(inter)})"
+
+    lines = [
+        "| case | mirrors: px (inter px) | one pass | ray traced (auto) | ray traced, mirrors "
+        "blind | ray traced − one pass | ray traced − blind, inter px |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        p = r["passes"][method]
+        lines.append(
+            f"| {_case(r)} | {r['mirrors']}: {r['subject_pixels']} ({r['inter_pixels']}) | "
+            + " | ".join(cell(p[run], p[run]["inter"]["psnr"]) for run in runs)
+            + f" | {p[AUTO]['psnr'] - p[ONE]['psnr']:+.2f} dB | "
+            f"{p[AUTO]['inter']['psnr'] - p[TRACED_BLIND]['inter']['psnr']:+.2f} dB |"
+        )
+    mean = {
+        run: {
+            m: _finite_mean([r["passes"][method][run][m] for r in rows]) for m in ("psnr", "ssim")
+        }
+        for run in runs
+    }
+    inter = {
+        run: _finite_mean([r["passes"][method][run]["inter"]["psnr"] for r in rows]) for run in runs
+    }
+    ahead = sum(r["passes"][method][AUTO]["psnr"] > r["passes"][method][ONE]["psnr"] for r in rows)
+    lines.append(
+        "| mean | | "
+        + " | ".join(cell(mean[run], inter[run]) for run in runs)
+        + f" | {mean[AUTO]['psnr'] - mean[ONE]['psnr']:+.2f} dB, ahead in {ahead}/{len(rows)} | "
+        f"{inter[AUTO] - inter[TRACED_BLIND]:+.2f} dB |"
+    )
     return "\n".join(lines) + "\n"
 
 

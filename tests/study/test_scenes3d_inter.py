@@ -81,6 +81,20 @@ def test_the_defaults_passes_bring_the_mirrors_closer_than_one_pass(quick_inter)
     assert runs["auto"]["inter"]["psnr"] > runs["one pass"]["inter"]["psnr"] + 0.3, runs
 
 
+def test_the_traced_pass_gains_by_the_mirrors_seeing_each_other(quick_inter):
+    # The same traced render with the mirrors blind to each other is the default's lookup
+    # alone, on the dome: no further from the truth than one pass (its contact shadows now
+    # darken the ground for both mirrors); seeing each other is what brings the inter pixels
+    # closer.
+    data, out = quick_inter
+    (record,) = data["scenes"]
+    runs = record["passes"][data["default_method"]]
+    blind = runs["ray traced, mirrors blind"]
+    assert blind["psnr"] > runs["one pass"]["psnr"] - NOISE_DB, runs
+    assert runs["auto"]["inter"]["psnr"] > blind["inter"]["psnr"] + 0.3, runs
+    assert "<!-- scenes3d:traced -->" in (out / "scenes3d_quick.md").read_text()
+
+
 def test_the_passes_can_gain_little_on_these_mirrors(quick_inter):
     # Why the passes hardly move the scores: the mirrors show each other on a small share of
     # their pixels, so even exact inter-reflections there (the rest left as one pass) would add
