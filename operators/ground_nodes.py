@@ -34,7 +34,7 @@ Taken in the object's space, it follows the object at render time as the lookup 
 
 from dataclasses import dataclass
 
-from .nodes import find_or_new_group, math_node, new_node, vector_math_node
+from .nodes import find_or_new_group, link_or_set, math_node, new_node, vector_math_node
 
 GROUND_GROUP = "VR Ground"
 OCCLUSION_GROUP = "VR Ground Occlusion"
@@ -258,11 +258,11 @@ def ensure_occlusion_group():
     return group
 
 
-def mix_ground(nodes, links, position, direction, colour, ground, location, box=None):
+def mix_ground(nodes, links, position, direction, colour, ground, location, boxes=()):
     """The map's ``colour`` with the ground of ``ground`` (a GroundLookup) mixed in along the
-    ray from ``position`` in ``direction`` (world-space sockets). ``box``: (centre, half size)
-    sockets of the shaded object's box (`occluder`), which darkens the ground around it.
-    Returns the colour socket."""
+    ray from ``position`` in ``direction`` (world-space sockets). ``boxes``: (centre, half size)
+    of each object whose contact shadow darkens the ground (`occluder`; each a socket or a
+    value, in the space of the object the material is on). Returns the colour socket."""
     x, y = location
     lookup = new_node(nodes, "ShaderNodeGroup", GROUND_GROUP, (x, y))
     lookup.node_tree = ensure_ground_group()
@@ -284,17 +284,19 @@ def mix_ground(nodes, links, position, direction, colour, ground, location, box=
         user.use_cyclic, user.use_auto_refresh = cyclic, True
     links.new(lookup.outputs["UV"], plate.inputs["Vector"])
     seen = plate.outputs["Color"]
-    if box is not None:
-        shade = new_node(nodes, "ShaderNodeGroup", OCCLUSION_GROUP, (x + 200, y - 300))
+    for k, box in enumerate(boxes):
+        at = (x + 200, y - 300 - 250 * k)
+        shade = new_node(nodes, "ShaderNodeGroup", OCCLUSION_GROUP, at)
         shade.node_tree = ensure_occlusion_group()
         links.new(position, shade.inputs["Position"])
         links.new(direction, shade.inputs["Direction"])
         shade.inputs["Height"].default_value = ground.height
-        links.new(box[0], shade.inputs["Box Centre"])
-        links.new(box[1], shade.inputs["Box Half Size"])
+        for name, value in zip(("Box Centre", "Box Half Size"), box):
+            link_or_set(links, shade.inputs[name], value)
         seen = vector_math_node(
-            nodes, links, "SCALE", "Ground Shaded", (x + 350, y - 150), seen, shade.outputs["Sky"]
-        )
+            nodes, links, "SCALE", "Ground Shaded", (x + 350, at[1] + 150), seen,
+            shade.outputs["Sky"],
+        )  # fmt: skip
 
     # colour + weight (plate - colour)
     step = vector_math_node(nodes, links, "SUBTRACT", "Ground - Map", (x + 400, y), seen, colour)

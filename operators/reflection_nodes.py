@@ -193,7 +193,7 @@ def ensure_reflection_group(mode, image, ground=None):
         position = geometry.outputs["Position"]
         box = tuple(g_in.outputs[name] for name in BOX_INPUTS)
         env = mix_ground(
-            nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600), box
+            nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600), (box,)
         )
 
     emission = new_node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))

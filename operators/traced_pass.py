@@ -32,6 +32,7 @@ from mathutils import Vector
 
 from . import ground_nodes, reflection_nodes, shading
 from .images import CREATED
+from .nodes import new_node, vector_math_node, view_ray
 
 DOME = "VR Traced Dome"
 MIRROR = "VR Traced Mirror"
@@ -104,15 +105,6 @@ def _world_box(obj, origin):
     return centre, tuple((b - a) / 2 for a, b in zip(low, high))
 
 
-def _vector(nodes, links, operation, a, b=None):
-    node = nodes.new("ShaderNodeVectorMath")
-    node.operation = operation
-    links.new(a, node.inputs[0])
-    if b is not None:
-        links.new(b, node.inputs[1])
-    return node
-
-
 def _dome_material(image, ground, boxes):
     """Emission of the default's lookup along each ray that meets the dome, from its origin.
     ``boxes``: (centre, half size) of every reflective object in the dome's space."""
@@ -124,51 +116,23 @@ def _dome_material(image, ground, boxes):
         material.cycles.emission_sampling = "NONE"  # lights nothing: it is only seen
     nodes, links = material.node_tree.nodes, material.node_tree.links
     nodes.clear()
-    geometry = nodes.new("ShaderNodeNewGeometry")
-    path = nodes.new("ShaderNodeLightPath")
-    back = _vector(nodes, links, "SCALE", geometry.outputs["Incoming"])
-    links.new(path.outputs["Ray Length"], back.inputs["Scale"])
-    origin = _vector(nodes, links, "ADD", geometry.outputs["Position"], back.outputs[0])
-    direction = _vector(nodes, links, "SCALE", geometry.outputs["Incoming"])
-    direction.inputs["Scale"].default_value = -1.0
-    ray = {"Position": origin.outputs[0], "Direction": direction.outputs[0]}
-
-    colour = reflection_nodes.env_lookup(nodes, links, ray["Direction"], image, (0, 0))
-    lookup = nodes.new("ShaderNodeGroup")
-    lookup.node_tree = ground_nodes.ensure_ground_group()
-    for name, socket in ray.items():
-        links.new(socket, lookup.inputs[name])
-    lookup.inputs["Height"].default_value = ground.height
-    lookup.inputs["Focal"].default_value = (*ground.focal, 0.0)
-    lookup.inputs["Centre"].default_value = (*ground.centre, 0.0)
-    lookup.inputs["Aspect"].default_value = ground.aspect
-    plate = nodes.new("ShaderNodeTexImage")
-    plate.image, plate.interpolation, plate.extension = ground.plate, "Linear", "EXTEND"
-    if ground.frames is not None:
-        user = plate.image_user
-        user.frame_duration, user.frame_start, user.frame_offset, user.use_cyclic = ground.frames
-        user.use_auto_refresh = True
-    links.new(lookup.outputs["UV"], plate.inputs["Vector"])
-    seen = plate.outputs["Color"]
-    for centre, half in boxes:  # every reflective object's contact shadow on the ground
-        shade = nodes.new("ShaderNodeGroup")
-        shade.node_tree = ground_nodes.ensure_occlusion_group()
-        for name, socket in ray.items():
-            links.new(socket, shade.inputs[name])
-        shade.inputs["Height"].default_value = ground.height
-        shade.inputs["Box Centre"].default_value = centre
-        shade.inputs["Box Half Size"].default_value = half
-        scaled = _vector(nodes, links, "SCALE", seen)
-        links.new(shade.outputs["Sky"], scaled.inputs["Scale"])
-        seen = scaled.outputs[0]
-    # colour + weight (ground - colour): the material's own mix (ground_nodes.mix_ground)
-    step = _vector(nodes, links, "SUBTRACT", seen, colour)
-    weighted = _vector(nodes, links, "SCALE", step.outputs[0])
-    links.new(lookup.outputs["Weight"], weighted.inputs["Scale"])
-    total = _vector(nodes, links, "ADD", colour, weighted.outputs[0])
-    emission = nodes.new("ShaderNodeEmission")
-    links.new(total.outputs[0], emission.inputs["Color"])
-    output = nodes.new("ShaderNodeOutputMaterial")
+    geometry, view = view_ray(nodes, links)  # the ray's direction: -Incoming
+    path = new_node(nodes, "ShaderNodeLightPath", "Light Path", (-900, 0))
+    back = vector_math_node(
+        nodes, links, "SCALE", "Back To The Origin", (-700, 0),
+        geometry.outputs["Incoming"], path.outputs["Ray Length"],
+    )  # fmt: skip
+    origin = vector_math_node(
+        nodes, links, "ADD", "Ray Origin", (-500, 0), geometry.outputs["Position"], back
+    )
+    direction = view.outputs["Vector"]
+    colour = reflection_nodes.env_lookup(nodes, links, direction, image, (-300, 300))
+    total = ground_nodes.mix_ground(
+        nodes, links, origin, direction, colour, ground, (0, 600), boxes
+    )
+    emission = new_node(nodes, "ShaderNodeEmission", "Dome Emission", (800, 300))
+    links.new(total, emission.inputs["Color"])
+    output = new_node(nodes, "ShaderNodeOutputMaterial", "Output", (1000, 300))
     links.new(emission.outputs["Emission"], output.inputs["Surface"])
     return material
 
