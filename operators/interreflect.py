@@ -220,6 +220,33 @@ def pass_steps(
                 return composite, rgba, reports
 
             x0, y0, x1, y1 = border = _border(done, coverage, plate.shape, (h, w))
+            _set_border(scene.render, border, (h, w))
+            if neighbours and self_mask and traced_pass.applies(scene, done):
+                # Camera View + Ground under Cycles: pass 2 ray traces every level at once
+                started = time.perf_counter()
+                with traced_pass.traced(scene, done):
+                    rendered = time.perf_counter()
+                    yield generate.Step(
+                        label(2) + "rendering (ray traced)",
+                        1.6 / limit,
+                        render=(scene.name, layer.name),
+                    )
+                    new, _ = _read_render(scene, layer, path)
+                    render_seconds = time.perf_counter() - rendered
+                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
+                previous, composite = composite, over(rgba, plate_small)
+                reports.append(
+                    PassReport(
+                        2,
+                        time.perf_counter() - started,
+                        _change(composite, previous, coverage),
+                        border,
+                        0.0,
+                        render_seconds,
+                        (TRACED_NOTE,) if limit > 2 and passes != "auto" else (),
+                    )
+                )
+                return composite, rgba, reports
             # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
             # render pixels `sub` (nearest).
             ys, xs = nearest_rows(h, plate.shape[0]), nearest_rows(w, plate.shape[1])
@@ -229,24 +256,6 @@ def pass_steps(
             # The composite at the plate's size; outside the region it stays pass 1's.
             source = over(rgba[np.ix_(ys, xs)], plate)
             inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
-            _set_border(scene.render, border, (h, w))
-            if neighbours and self_mask and traced_pass.applies(scene, done):
-                # Camera View + Ground under Cycles: pass 2 ray traces every level at once
-                started = time.perf_counter()
-                with traced_pass.traced(scene, done):
-                    yield generate.Step(
-                        label(2) + "rendering (ray traced)",
-                        1.4 / limit,
-                        render=(scene.name, layer.name),
-                    )
-                    new, _ = _read_render(scene, layer, path)
-                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
-                previous, composite = composite, over(rgba, plate_small)
-                seconds = time.perf_counter() - started
-                notes = (TRACED_NOTE,) if limit > 2 and passes != "auto" else ()
-                change = _change(composite, previous, coverage)
-                reports.append(PassReport(2, seconds, change, border, 0.0, seconds, notes))
-                return composite, rgba, reports
             for k in range(2, limit + 1):
                 started = time.perf_counter()
                 # The previous composite is the new plate ...

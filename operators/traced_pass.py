@@ -159,10 +159,10 @@ def _mirror_material(strength):
         material.use_nodes = True
     nodes, links = material.node_tree.nodes, material.node_tree.links
     nodes.clear()
-    glossy = nodes.new("ShaderNodeBsdfGlossy")
+    glossy = new_node(nodes, "ShaderNodeBsdfGlossy", "Mirror", (0, 0))
     glossy.inputs["Color"].default_value = (strength, strength, strength, 1.0)
     glossy.inputs["Roughness"].default_value = 0.0
-    output = nodes.new("ShaderNodeOutputMaterial")
+    output = new_node(nodes, "ShaderNodeOutputMaterial", "Output", (200, 0))
     links.new(glossy.outputs["BSDF"], output.inputs["Surface"])
     return material
 
