@@ -547,3 +547,26 @@ def test_a_run_stopped_in_the_traced_render_puts_the_scene_back(interreflect):
     job.stop()
     snapshot.restore()
     assert traced_leftovers() == [] and scene_state() == before
+
+
+def test_the_traced_pass_hides_a_shadow_catcher_from_the_mirrors_and_puts_it_back(
+    interreflect, monkeypatch
+):
+    # The dome reads the ground from the plate; a shadow catcher (or the chosen Ground object)
+    # under the mirrors would hide it from them, so it is hidden from glossy rays for the
+    # render, and only for the render.
+    scene, objects = ground_scene()
+    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.8))
+    catcher = bpy.context.active_object
+    catcher.is_shadow_catcher = True
+    seen = []
+    read = interreflect._read_render
+
+    def reading(*args):
+        seen.append(catcher.visible_glossy)
+        return read(*args)
+
+    monkeypatch.setattr(interreflect, "_read_render", reading)
+    _, _, reports = run(interreflect, objects, "auto")
+    assert len(reports) == 2 and seen == [True, False]  # pass 1 as is; the traced pass hid it
+    assert catcher.visible_glossy and traced_leftovers() == []
