@@ -22,7 +22,9 @@ looks shade with the object's own material and the other methods' maps are each 
 the dome, its material and the mirror materials are made for the render and deleted after it,
 and every slot, visibility flag and bounce count put back (`traced`), also on errors or Esc.
 While it renders, other glossy objects inside the reflective objects' render border see the
-dome where they would see the world.
+dome where they would see the world, and what the mirrors show is indirect light to Cycles:
+the scene's Clamp Indirect, when set, applies to it (a plate brighter than that shows dimmer
+in the mirrors than in pass 1).
 """
 
 import contextlib
