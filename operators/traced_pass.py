@@ -3,7 +3,8 @@
 The paper's passes (interreflect.py) rebuild each object's map from the previous composite,
 which shows a neighbour as the camera saw it. Against a path-traced truth that brings Camera
 View + Ground nothing (docs/scenes3d.md, Inter-reflections). In this pass, instead, every
-reflective object is a real mirror for one render, and whatever a mirror's ray meets that is
+reflective object is a real mirror for one render (of the look's colour: the strength in
+Replace, the base colour times it in Modulate), and whatever a mirror's ray meets that is
 not another object is read by the default's own lookup: the map along the ray, the ground where
 the ray meets it read on the plate, darkened by every reflective object's contact shadow. The
 lookup needs the ray's origin, which a world shader does not know; so it sits on a dome (a
@@ -16,9 +17,10 @@ Blind to each other, the mirrors render exactly the one-pass look (the dome repr
 material's lookup); seeing each other, Cycles adds every level of inter-reflection up to the
 scene's glossy bounces in one render.
 
-It applies to Camera View + Ground in the Replace look under Cycles (`applies`): the other
-looks shade with the object's own material and the other methods' maps are each object's own
-(the paper's segmentation), so they keep the paper's passes. Everything here is temporary:
+It applies to Camera View + Ground in the Replace and Modulate looks under Cycles
+(`applies`): Mix shades with the object's own surface (its mirror would need the material's
+Fresnel mix) and the other methods' maps are each object's own (the paper's segmentation), so
+they keep the paper's passes. Everything here is temporary:
 the dome, its material and the mirror materials are made for the render and deleted after it,
 and every slot, visibility flag and bounce count put back (`traced`), also on errors or Esc.
 While it renders, other glossy objects inside the reflective objects' render border see the
@@ -40,6 +42,7 @@ DOME = "VR Traced Dome"
 MIRROR = "VR Traced Mirror"
 MIN_RADIUS = 1000.0  # m: the dome's radius at least, and 20 x the farthest object's distance
 MIN_GLOSSY_BOUNCES = 4  # raised to this for the render when the scene has fewer
+LOOKS = ("REPLACE", "MODULATE")  # the map is the whole surface: a mirror of its colour
 # the dome is seen by glossy rays only: no camera, lighting, shadows, transmission or volumes
 DOME_HIDDEN_FROM = (
     "visible_camera",
@@ -52,12 +55,12 @@ DOME_HIDDEN_FROM = (
 
 def applies(scene, objects) -> bool:
     """True when the ray-traced pass replaces the paper's passes for ``objects``: Cycles,
-    Camera View + Ground, every object in the Replace look with the ground read per point."""
+    Camera View + Ground, every object in the Replace or Modulate look with the ground read
+    per point."""
     if scene.render.engine != "CYCLES" or scene.virtual_reflections.method != "GROUND":
         return False
     return bool(objects) and all(
-        shading.mode_of(obj) == "REPLACE" and _ground_node(_group(obj)) is not None
-        for obj in objects
+        shading.mode_of(obj) in LOOKS and _ground_node(_group(obj)) is not None for obj in objects
     )
 
 
@@ -153,29 +156,49 @@ def _sphere_mesh(radius):
     return mesh
 
 
-def _mirror_material(strength):
-    """A perfect mirror of the Replace look's strength."""
-    material = bpy.data.materials.new(MIRROR)
-    material[CREATED] = "traced mirror"
-    if material.node_tree is None:
-        material.use_nodes = True
-    nodes, links = material.node_tree.nodes, material.node_tree.links
-    nodes.clear()
-    glossy = new_node(nodes, "ShaderNodeBsdfGlossy", "Mirror", (0, 0))
-    glossy.inputs["Color"].default_value = (strength, strength, strength, 1.0)
-    glossy.inputs["Roughness"].default_value = 0.0
-    output = new_node(nodes, "ShaderNodeOutputMaterial", "Output", (200, 0))
-    links.new(glossy.outputs["BSDF"], output.inputs["Surface"])
-    return material
+def _input(socket):
+    """What feeds ``socket``: the linked output, else its value (a colour without alpha)."""
+    if socket.is_linked:
+        return socket.links[0].from_socket
+    value = socket.default_value
+    return tuple(value)[:3] if hasattr(value, "__len__") else value
+
+
+def _mirror_of(material):
+    """A copy of ``material`` (a copy `shading.attach` made) with each reflection group node
+    replaced by a perfect mirror of the look's colour: the strength (Replace), the base colour
+    times the strength (Modulate). The map, then, is what the mirror meets on the dome."""
+    mirror = material.copy()
+    mirror.name = f"{MIRROR} [{material.name}]"
+    mirror[CREATED] = "traced mirror"
+    nodes, links = mirror.node_tree.nodes, mirror.node_tree.links
+    for node in list(nodes):
+        tree = getattr(node, "node_tree", None)
+        if node.bl_idname != "ShaderNodeGroup" or tree is None or tree.get("vr_mode") not in LOOKS:
+            continue
+        x, y = node.location
+        base = _input(node.inputs["Base Color"]) if "Base Color" in node.inputs else (1.0,) * 3
+        colour = vector_math_node(
+            nodes, links, "SCALE", "Mirror Colour", (x, y - 200), base,
+            _input(node.inputs["Strength"]),
+        )  # fmt: skip
+        glossy = new_node(nodes, "ShaderNodeBsdfGlossy", "Mirror", (x + 200, y))
+        glossy.inputs["Roughness"].default_value = 0.0
+        links.new(colour, glossy.inputs["Color"])
+        for link in list(node.outputs["Shader"].links):
+            links.new(glossy.outputs["BSDF"], link.to_socket)
+        nodes.remove(node)
+    return mirror
 
 
 @contextlib.contextmanager
 def traced(scene, objects):
-    """While inside: ``objects`` (with Generate's Replace look, `applies`) are mirrors of the
-    look's strength, a dome around the scene gives every ray that meets nothing else the
-    default's lookup, the scene's ground object and shadow catchers are hidden from glossy
-    rays (the dome reads the ground from the plate), and the glossy bounces are at least
-    MIN_GLOSSY_BOUNCES. Everything is put back and what was made deleted on leaving."""
+    """While inside: ``objects`` (with Generate's Replace or Modulate look, `applies`) are
+    mirrors of the look's colour (`_mirror_of`), a dome around the scene gives every ray that
+    meets nothing else the default's lookup, the scene's ground object and shadow catchers are
+    hidden from glossy rays (the dome reads the ground from the plate), and the glossy bounces
+    are at least MIN_GLOSSY_BOUNCES. Everything is put back and what was made deleted on
+    leaving."""
     group = _group(objects[0])
     image = shading.map_of(objects[0])
     ground = _ground_of(group)
@@ -198,12 +221,16 @@ def traced(scene, objects):
         scene.collection.objects.link(dome)
         for attr in DOME_HIDDEN_FROM:
             setattr(dome, attr, False)
-        mirror = _mirror_material(scene.virtual_reflections.strength)
-        made.append(mirror)
+        mirrors = {}  # each material copy of the objects -> its mirror
         for obj in objects:
             for slot in obj.material_slots:
+                if slot.material is None:
+                    continue
+                if slot.material.name not in mirrors:
+                    mirrors[slot.material.name] = _mirror_of(slot.material)
+                    made.append(mirrors[slot.material.name])
                 slots.append((slot, slot.material))
-                slot.material = mirror
+                slot.material = mirrors[slot.material.name]
         chosen = scene.virtual_reflections.ground_object
         ours = set(objects)
         for obj in scene.objects:
