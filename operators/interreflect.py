@@ -225,27 +225,15 @@ def pass_steps(
                 # Camera View + Ground under Cycles: pass 2 ray traces every level at once
                 started = time.perf_counter()
                 with traced_pass.traced(scene, done):
-                    rendered = time.perf_counter()
-                    yield generate.Step(
-                        label(2) + "rendering (ray traced)",
-                        1.6 / limit,
-                        render=(scene.name, layer.name),
-                    )
-                    new, _ = _read_render(scene, layer, path)
-                    render_seconds = time.perf_counter() - rendered
-                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
+                    render_seconds = yield from _render_region(
+                        scene, layer, path, label(2) + "rendering (ray traced)", 1.6 / limit,
+                        rgba, border,
+                    )  # fmt: skip
                 previous, composite = composite, over(rgba, plate_small)
-                reports.append(
-                    PassReport(
-                        2,
-                        time.perf_counter() - started,
-                        _change(composite, previous, coverage),
-                        border,
-                        0.0,
-                        render_seconds,
-                        (TRACED_NOTE,) if limit > 2 and passes != "auto" else (),
-                    )
-                )
+                note = (TRACED_NOTE,) if limit > 2 and passes != "auto" else ()
+                change = _change(composite, previous, coverage)
+                seconds = time.perf_counter() - started
+                reports.append(PassReport(2, seconds, change, border, 0.0, render_seconds, note))
                 return composite, rgba, reports
             # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
             # render pixels `sub` (nearest).
@@ -279,13 +267,9 @@ def pass_steps(
                         _place_neighbours(scene, depsgraph, obj, others, source)
                     inside[mine] = kept
                 maps_seconds = time.perf_counter() - started
-                rendered = time.perf_counter()
-                yield generate.Step(
-                    label(k) + "rendering", (k - 0.4) / limit, render=(scene.name, layer.name)
+                render_seconds = yield from _render_region(
+                    scene, layer, path, label(k) + "rendering", (k - 0.4) / limit, rgba, border
                 )
-                new, _ = _read_render(scene, layer, path)
-                render_seconds = time.perf_counter() - rendered
-                rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
                 previous, composite = composite, over(rgba, plate_small)
                 reports.append(
                     PassReport(
@@ -300,6 +284,17 @@ def pass_steps(
                 if passes == "auto" and reports[-1].change < tolerance:
                     break
     return composite, rgba, reports
+
+
+def _render_region(scene, layer, path, stage, share, rgba, border):
+    """A later pass's render step: Blender renders the border, its region is pasted into
+    ``rgba`` (render pixels, ``border`` as `_border`). Returns the render's seconds."""
+    rendered = time.perf_counter()
+    yield generate.Step(stage, share, render=(scene.name, layer.name))
+    new, _ = _read_render(scene, layer, path)
+    x0, y0, x1, y1 = border
+    rgba[y0:y1, x0:x1] = new[y0:y1, x0:x1]
+    return time.perf_counter() - rendered
 
 
 TRACED_NOTE = (
