@@ -154,11 +154,12 @@ def parse(argv):
     )
     p.add_argument(
         "--surroundings",
-        choices=("auto", "open", "enclosed"),
+        choices=("auto", "open", "enclosed", "world"),
         default=None,
         help="for --method ground, how bright the sky the plate does not show is taken to be: "
-        "open (outdoors under open sky), enclosed (a room, a studio, a walled yard) or auto "
-        "(nothing known; default: the shot's setting)",
+        "open (outdoors under open sky), enclosed (a room, a studio, a walled yard), auto "
+        "(nothing known), or world (the shot's world holds the on-set HDRI: it is used there); "
+        "default: the shot's setting",
     )
     p.add_argument("--frame", type=int, default=None)
     p.add_argument("--engine", choices=("CYCLES", "EEVEE"), default=None)

@@ -19,7 +19,7 @@ from ..virtual_reflections.mapsize import WIDTHS
 
 COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
 METHODS = ("ground", "camera", "paper")
-SURROUNDINGS = ("auto", "open", "enclosed")  # virtual_reflections.params.SKY_GAINS
+SURROUNDINGS = ("auto", "open", "enclosed", "world")  # params.SKY_GAINS; world: its HDRI
 ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
@@ -55,7 +55,7 @@ class BatchOptions:
     triangles: int | None = None  # 0: continuous front face
     method: str | None = None  # ground, camera or paper
     ground_object: str | None = None  # the ground for --method ground (None: the shot's)
-    surroundings: str | None = None  # auto, open or enclosed, for --method ground
+    surroundings: str | None = None  # auto, open, enclosed or world, for --method ground
     frame: int | None = None  # one frame of the scene
     engine: str | None = None  # CYCLES or EEVEE
     samples: int | None = None  # render samples (0: the shot's)

@@ -67,6 +67,12 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
         f"is taken darker, {SKY_GAINS['enclosed']:g} times the photo's brightness (for mirrors "
         "and sharp reflections; rough objects indoors do better under Auto)",
     ),
+    (
+        "WORLD",
+        "World HDRI",
+        "The scene's world holds the HDRI shot on set: what the photo does not show comes "
+        "from it, turned and as bright as the world is set (read, never changed)",
+    ),
 )
 FRONT_ITEMS = (
     (

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import bpy
 
 from ..virtual_reflections.composite import union_box
-from . import maps, pipeline, plate, shading, world
+from . import maps, pipeline, plate, shading, world, world_probe
 from .choices import map_width
 
 RENDER_START_GRACE = 5.0  # s: an invoked render job not seen running by then counts as over
@@ -146,6 +146,7 @@ def steps(scene, depsgraph, objects, pixels=None):
     save_dir = maps.save_folder(settings)
     view = pipeline.view(scene, pixels.shape, depsgraph)
     report.warnings += view.warnings(settings)
+    probe = pipeline.scene_probe(scene, view, report)
     yield Step("Measuring the objects", 0.05)
     boxes, extents, problems = pipeline.object_boxes(view, scene, depsgraph, objects)
     report.warnings += problems
@@ -164,6 +165,10 @@ def steps(scene, depsgraph, objects, pixels=None):
         own = pipeline.map_params(view, scene, depsgraph, [obj])
         rough = pipeline.map_roughness(scene, [obj])
         jobs.append((obj.name, obj, box, own, widths[obj], rough))
+    if probe is not None and jobs:
+        warning = world_probe.exposure_warning(probe, pixels, jobs[0][3])
+        if warning:
+            report.warnings.append(warning)
     envs = []
     for i, (name, _, box, params, width, rough) in enumerate(jobs):
         share = 0.1 + 0.85 * i / len(jobs)
@@ -177,7 +182,9 @@ def steps(scene, depsgraph, objects, pixels=None):
                 yield Step(
                     f"Gathering ({name})",
                     share + 0.6 * 0.85 / len(jobs),
-                    functools.partial(pipeline.gather, table, pixels, report, rough, pyramids),
+                    functools.partial(
+                        pipeline.gather, table, pixels, report, rough, pyramids, probe
+                    ),
                 )
             )
         )

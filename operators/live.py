@@ -232,6 +232,7 @@ def _rebuild(scene, depsgraph, names, full, report):
         return
     with report.timed("bounds"):
         view = pipeline.view(scene, pixels.shape, depsgraph)
+        probe = pipeline.scene_probe(scene, view, report)
     save_dir = None
     if full:
         try:
@@ -260,7 +261,7 @@ def _rebuild(scene, depsgraph, names, full, report):
         world = shading.mode_of(objs[0]) == "WORLD"
         name = ("World" if world else objs[0].name) if full else None
         rough = pipeline.map_roughness(scene, objs) if full else 0.0  # sharp while moving
-        env, _ = pipeline.build_map(source, box, shaped, width, report, name, rough)
+        env, _ = pipeline.build_map(source, box, shaped, width, report, name, rough, probe=probe)
         with report.timed("image"):
             for obj, b in boxes.items():
                 obj.virtual_reflections.bounds = b  # the panel's segmentation preview follows

@@ -20,11 +20,12 @@ import numpy as np
 
 from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
-from ..virtual_reflections.envmap import apply_table
+from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.params import SKY_GAINS
 from ..virtual_reflections.prefilter import prefilter_latlong
-from . import bounds, plate, shading
+from ..virtual_reflections.probe import with_probe
+from . import bounds, plate, shading, world_probe
 from .ground_nodes import GroundLookup
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
@@ -89,7 +90,7 @@ def params(settings, intrinsics=None) -> Params:
         triangles=n,
         method="camera" if camera else "paper",
         intrinsics=tuple(intrinsics) if camera else None,
-        sky_gain=SKY_GAINS[settings.surroundings.lower()],
+        sky_gain=SKY_GAINS.get(settings.surroundings.lower(), SKY_GAINS["auto"]),
     )
 
 
@@ -302,12 +303,30 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
     return boxes, extents, problems
 
 
-def build_map(pixels, box, map_params, width, report, name=None, roughness=0.0, pyramids=None):
+def scene_probe(scene, view, report):
+    """The on-set HDRI for the unseen surroundings when the artist named the world's
+    (Surroundings: World HDRI, Camera View + Ground), else None. A world that cannot be read
+    is one line in the report's warnings, and the guessed sky (Auto) stands in."""
+    settings = scene.virtual_reflections
+    if settings.method != "GROUND" or settings.surroundings != "WORLD":
+        return None
+    if view.params.intrinsics is None:
+        return None
+    try:
+        return world_probe.world_probe(scene, view.projection)
+    except ValueError as exc:
+        report.warnings.append(f"{exc}: used Auto")
+        return None
+
+
+def build_map(
+    pixels, box, map_params, width, report, name=None, roughness=0.0, pyramids=None, probe=None
+):
     """The lat-long map of ``box`` (plate pixels) on ``pixels`` ((H, W, 3) float32 linear):
     -> ((width / 2, width, 3) float32 scene-linear map, the engine's LookupTable): `map_table`
     then `gather`."""
     table = map_table(pixels.shape, box, map_params, width, report, name)
-    return gather(table, pixels, report, roughness, pyramids), table
+    return gather(table, pixels, report, roughness, pyramids, probe), table
 
 
 def map_table(plate_shape, box, map_params, width, report, name=None):
@@ -326,13 +345,18 @@ def map_table(plate_shape, box, map_params, width, report, name=None):
     return table
 
 
-def gather(table, pixels, report, roughness=0.0, pyramids=None):
+def gather(table, pixels, report, roughness=0.0, pyramids=None, probe=None):
     """(width / 2, width, 3) float32 map: one gather of ``pixels`` through ``table``, and a
     ``roughness`` over prefilter.SHARP pre-filters it for that (`map_roughness`).
     ``pyramids``: the plate's pyramids (a dict kept with the plate,
-    `plate.PlateFrame.pyramids`), shared by every map of these pixels. No bpy."""
+    `plate.PlateFrame.pyramids`), shared by every map of these pixels. ``probe`` (engine
+    probe.Probe, `scene_probe`): the on-set HDRI in place of the guessed sky. No bpy."""
     with report.timed("gather"):
-        env = apply_table(table, pixels, pyramids)
+        parts = prior_parts(table, pixels, pyramids) if probe is not None else None
+        if parts is None:
+            env = apply_table(table, pixels, pyramids)
+        else:
+            env = with_probe(*parts, probe.latlong(table.shape[1]))
     if roughness > 0:
         with report.timed("prefilter"):
             env = prefilter_latlong(env, roughness)

@@ -177,6 +177,7 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
     result.plate, result.info = current.file, current.info
     with result.timed("bounds"):
         view = pipeline.view(scene, current.pixels.shape, depsgraph)
+        probe = pipeline.scene_probe(scene, view, result)
     for image, objs in found.items():
         with result.timed("bounds"):
             raw = _group_box(view, scene, depsgraph, objs, result.warnings)
@@ -193,7 +194,9 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
             result.unchanged.append(image.name)
             continue
         rough = pipeline.map_roughness(scene, objs)
-        env, _ = pipeline.build_map(current.pixels, held, shaped, width, result, roughness=rough)
+        env, _ = pipeline.build_map(
+            current.pixels, held, shaped, width, result, roughness=rough, probe=probe
+        )
         with result.timed("image"):
             _write_map(image, env)
         _written[image.name] = built_from

@@ -9,6 +9,7 @@ pixels (origin top-left, y down, x1/y1 exclusive). Frames and layouts: see layou
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 from .backends import backend, given, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
-from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values
+from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, sky_level
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import CHUNK, for_blocks
 from .params import Params
@@ -129,6 +130,29 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
     return out.reshape(table.shape + (3,))
+
+
+def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None):
+    """The map split at its sky prior (fill.py): -> (the map with the prior black (h, w, 3),
+    each texel's weight of the prior (h, w) float32 in 0..1), or None when the table has no
+    prior (no world horizon, or the plate shows the sky in every direction the fill covers).
+    The map is linear in the prior, so the map at the prior's own level minus the map with it
+    black, over that level, is the weight (probe.py puts an HDRI in its place)."""
+    fill = table.fill
+    if fill is None or fill.sky is None or not (fill.sky < 1).any():
+        return None
+    without, lit = (
+        apply_table(
+            dataclasses.replace(table, fill=dataclasses.replace(fill, sky_gain=g)), plate, pyramids
+        )
+        for g in (0.0, 1.0)
+    )
+    seg = table.segmentation
+    shapes = level_shapes(seg.height, seg.width, table.levels)
+    source = build_pyramid(plate, table.levels, table.first_level)
+    level = sky_level(level_view(source, shapes, fill.level, table.first_level), fill.energy)
+    weight = (lit - without).mean(axis=-1) / max(level, 1e-30)
+    return without, np.clip(weight, 0.0, 1.0).astype(np.float32)
 
 
 def _gather(source, texels, index, weight, out) -> None:

@@ -223,14 +223,22 @@ def fill_profile(
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     if sky is not None and (sky < 1).any():
-        luma = pixels @ REC709_LUMA
-        level = math.exp(float(np.log(luma + float(eps @ REC709_LUMA)).mean()))
-        if energy > 0:
-            level *= (max(float(luma.mean()), 1e-30) / max(level, 1e-30)) ** energy
-        prior = np.float32(sky_gain * level)
+        prior = np.float32(sky_gain * sky_level(pixels, energy))
         share = sky[:, None]
         out[:] = share * out + (1.0 - share) * prior
     return out
+
+
+def sky_level(level_pixels: np.ndarray, energy: float = 0.0) -> float:
+    """The sky prior's level at gain 1 (`fill_profile`): the log-average luminance of the
+    pixels `level_pixels` (..., 3), brightened toward their mean's by `energy`."""
+    pixels = np.maximum(level_pixels.reshape(-1, 3), 0.0)
+    eps = 1e-3 * pixels.mean(0) + 1e-12
+    luma = pixels @ REC709_LUMA
+    level = math.exp(float(np.log(luma + float(eps @ REC709_LUMA)).mean()))
+    if energy > 0:
+        level *= (max(float(luma.mean()), 1e-30) / max(level, 1e-30)) ** energy
+    return level
 
 
 def side_weight(directions, intrinsics, width: int) -> np.ndarray:

@@ -86,7 +86,7 @@ def test_the_batch_option_sets_the_surroundings(addon):
     assert scene.virtual_reflections.surroundings == "OPEN"
     render.configure(scene, options.BatchOptions(plate="p.exr", out="o"))
     assert scene.virtual_reflections.surroundings == "OPEN"  # not given: the shot's own
-    with pytest.raises(ValueError, match="--surroundings must be auto, open or enclosed"):
+    with pytest.raises(ValueError, match="--surroundings must be auto, open, enclosed or world"):
         options.BatchOptions(plate="p.exr", out="o", surroundings="outdoors")
 
 

@@ -1,0 +1,127 @@
+"""An on-set HDRI in place of the sky prior (probe.py, envmap.prior_parts): the map splits
+exactly at the prior, the probe is read in Blender's equirectangular layout along the right
+directions, and where the plate shows the surroundings the map stays the plate's."""
+
+import math
+
+import numpy as np
+import pytest
+
+from virtual_reflections import Params, lookup_table
+from virtual_reflections.envmap import apply_table, prior_parts
+from virtual_reflections.fill import sky_level
+from virtual_reflections.layouts import texel_directions
+from virtual_reflections.probe import Probe, exposure_ratio, sample, with_probe
+
+W, H = 160, 90
+F = 0.5 * W / math.tan(math.radians(30))
+INTRINSICS = (F, F, W / 2, H / 2)
+# Camera frame -> Blender world for a camera at the origin looking along world +Y, level:
+# camera +Z (ahead) = world +Y, camera +Y (up) = world +Z, camera +X (the plate's left) = -X.
+LEVEL = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+
+
+def up_when_pitched(deg):
+    a = math.radians(deg)
+    return (0.0, math.cos(a), -math.sin(a))
+
+
+def pitched(deg):
+    """Camera frame -> world for that camera pitched ``deg`` down."""
+    a = math.radians(deg)
+    tilt = np.array([[1, 0, 0], [0, math.cos(a), math.sin(a)], [0, -math.sin(a), math.cos(a)]])
+    return LEVEL @ tilt.T
+
+
+def test_the_probe_is_read_in_blenders_layout():
+    """World +X is the centre column, +Y a quarter of the width to its left, the zenith the
+    top row, the nadir the bottom one."""
+    h, w = 64, 128
+    img = np.zeros((h, w, 3), np.float32)
+    img[:, w // 2 - 1 : w // 2 + 1, 0] = 1.0  # +X
+    img[:, w // 4 - 1 : w // 4 + 1, 1] = 1.0  # +Y
+    img[0, :, 2] = 1.0  # the zenith
+    dirs = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [-1.0, 0, 0]])
+    got = sample(img, dirs)
+    assert got[0, 0] == pytest.approx(1.0) and got[0, 1] == 0
+    assert got[1, 1] == pytest.approx(1.0) and got[1, 0] == 0
+    assert got[2, 2] == pytest.approx(1.0)
+    assert got[3].sum() == 0
+
+
+def test_the_map_splits_exactly_at_the_prior():
+    """Without the prior, plus the weight times the prior's level, is the map."""
+    rng = np.random.default_rng(5)
+    plate = (0.1 + 0.3 * rng.random((H, W, 3))).astype(np.float32)
+    params = Params(method="camera", intrinsics=INTRINSICS, up=up_when_pitched(30), sky_gain=1.6)
+    table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
+    env = apply_table(table, plate)
+    without, weight = prior_parts(table, plate)
+    level = 1.6 * sky_level(plate)
+    # the fill reads a coarser level of the plate's pyramid: take its level from the split
+    d = texel_directions("latlong", 256)
+    up = d @ np.array(up_when_pitched(30)) > math.cos(math.radians(10))
+    assert weight[up].min() > 0.99  # straight up, nothing but the prior
+    implied = ((env - without)[up].mean(-1) / weight[up]).mean()
+    assert implied == pytest.approx(level, rel=0.05)
+    np.testing.assert_allclose(without + weight[..., None] * implied, env, atol=2e-5)
+    ahead = d[..., 2] > math.cos(math.radians(3))
+    assert weight[ahead].max() < 1e-4  # what the plate shows owes nothing to the prior
+
+
+def test_no_prior_without_a_horizon():
+    plate = np.full((H, W, 3), 0.2, np.float32)
+    table = lookup_table(
+        W, H, (60, 30, 100, 60), Params(method="camera", intrinsics=INTRINSICS), "latlong", 128
+    )
+    assert prior_parts(table, plate) is None
+
+
+def test_the_probe_fills_the_unseen_sky_along_the_right_directions():
+    """A probe bright in the world's +Z (zenith) and dark below, red toward world -Y (behind
+    the camera): the map straight up is the zenith's, behind and above it is red, ahead it is
+    still the plate."""
+    h, w = 128, 256
+    img = np.zeros((h, w, 3), np.float32)
+    img[: h // 8] = (4.0, 4.0, 4.0)  # within 22.5 degrees of the zenith
+    img[h // 8 : h // 2, 3 * w // 4 - 16 : 3 * w // 4 + 16] = (2.0, 0.0, 0.0)  # toward -Y
+    probe = Probe(img, pitched(30))
+    plate = np.full((H, W, 3), 0.2, np.float32)
+    params = Params(method="camera", intrinsics=INTRINSICS, up=up_when_pitched(30), sky_gain=1.6)
+    table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
+    without, weight = prior_parts(table, plate)
+    env = with_probe(without, weight, probe.latlong(256))
+    d = texel_directions("latlong", 256)
+    world = d @ pitched(30).T
+    zenith = world[..., 2] > math.cos(math.radians(10))
+    assert env[zenith].mean(0) == pytest.approx((4.0, 4.0, 4.0), rel=0.02)
+    behind = (world[..., 1] < -0.9) & (world[..., 2] > math.sin(math.radians(12)))
+    assert behind.any()
+    red = env[behind].mean(0)
+    assert red[0] > 1.5 and red[1] < 0.1 * red[0]
+    ahead = d[..., 2] > math.cos(math.radians(3))
+    np.testing.assert_allclose(env[ahead], 0.2, atol=1e-4)
+
+
+def test_the_exposure_check_compares_the_sky_both_show():
+    """A level camera: the plate's upper half is the probe's sky times 2 -> ratio 2. A camera
+    looking 40 degrees down sees no sky: no comparison."""
+    h, w = 64, 128
+    img = np.full((h, w, 3), 0.5, np.float32)
+    img[: h // 2] = (1.0, 1.2, 1.5)
+    probe = Probe(img, LEVEL)
+    plate = np.full((H, W, 3), 0.3, np.float32)
+    plate[: H // 2] = 2.0 * np.array((1.0, 1.2, 1.5), np.float32)
+    assert exposure_ratio(plate, INTRINSICS, up_when_pitched(0), probe) == pytest.approx(
+        2.0, rel=1e-3
+    )
+    assert exposure_ratio(plate, INTRINSICS, up_when_pitched(40), probe) is None
+
+
+def test_a_bad_probe_is_refused():
+    with pytest.raises(ValueError, match="NaN"):
+        Probe(np.full((8, 16, 3), np.nan, np.float32), np.eye(3))
+    with pytest.raises(ValueError, match="rotation"):
+        Probe(np.zeros((8, 16, 3), np.float32), 2 * np.eye(3))
+    with pytest.raises(ValueError, match="shape"):
+        Probe(np.zeros((8, 16), np.float32), np.eye(3))
