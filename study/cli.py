@@ -110,9 +110,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--surroundings",
-        choices=("auto", "open", "enclosed", "artist"),
+        choices=("auto", "open", "enclosed", "world", "artist"),
         help="with --mirror-only: the panel's Surroundings in every scene; artist: each "
-        "scene's by the kind of its HDRI (open sky or enclosed: study/sky_prior.py KINDS)",
+        "scene's by the kind of its HDRI (open sky or enclosed: study/sky_prior.py KINDS); "
+        "world: the scene's HDRI dome, as an on-set HDRI, read from the world",
     )
     p.add_argument(
         "--split",

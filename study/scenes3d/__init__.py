@@ -41,7 +41,13 @@ class ScenesInputError(Exception):
 
 
 CASES = ("default", "failures", "inter", "motion", "heldout")
-SURROUNDINGS = ("auto", "open", "enclosed", "artist")  # --surroundings (run.surroundings_of)
+SURROUNDINGS = (
+    "auto",
+    "open",
+    "enclosed",
+    "world",
+    "artist",
+)  # --surroundings (run.surroundings_of)
 
 
 @dataclass(frozen=True)

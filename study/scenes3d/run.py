@@ -50,6 +50,7 @@ BASELINES = (PROBE, STRETCHED, MEAN)
 METRICS = ("psnr", "ssim", "si_rmse")
 GROUND_CHOSEN = "Camera View + Ground (ground chosen)"
 NAMED = "Camera View + Ground (surroundings named)"  # the artist's: surroundings_of
+WORLD_HDRI = "Camera View + Ground (world HDRI)"  # Surroundings: World HDRI, the dome as world
 
 
 class Addon:
@@ -148,7 +149,8 @@ def run_scene(
     ``ground_chosen``: also Camera View + Ground with the ground plane chosen as the scene's
     Ground object (the method row GROUND_CHOSEN); ``named``: also Camera View + Ground with
     the scene's Surroundings named as an artist would, by the kind of its HDRI (the row
-    NAMED, `surroundings_of`)."""
+    NAMED, `surroundings_of`), and with Surroundings: World HDRI, the scene's dome (the on-set
+    probe) read from its world (the row WORLD_HDRI)."""
     started = time.perf_counter()
     new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -211,11 +213,13 @@ def run_scene(
     if ground_chosen:  # the ground plane picked as the Ground object (the failure cases)
         methods.append(("GROUND", GROUND_CHOSEN))
     if named:
-        methods.append(("GROUND", NAMED))
+        methods += [("GROUND", NAMED), ("GROUND", WORLD_HDRI)]
     for ident, label in methods:
         settings.method = ident
         settings.ground_object = others[0] if label == GROUND_CHOSEN else None
-        settings.surroundings = surroundings_of(spec, "artist") if label == NAMED else "AUTO"
+        settings.surroundings = {NAMED: surroundings_of(spec, "artist"), WORLD_HDRI: "WORLD"}.get(
+            label, "AUTO"
+        )
         times[label] = {}
         # One Generate per look; in the Mix look one per roughness (the map is pre-filtered
         # for the material's roughness, read at Generate).
@@ -302,7 +306,7 @@ def default_method_label(addon: Addon) -> str:
 def run_scenes(specs, work, width, samples, log, ground_chosen=False, named=False):
     """Every scene in turn; the add-on is registered once and unregistered at the end.
     ``ground_chosen``: add the GROUND_CHOSEN method row (after the add-on's default);
-    ``named``: the NAMED row (after the add-on's default)."""
+    ``named``: the NAMED and WORLD_HDRI rows (after the add-on's default)."""
     addon = Addon()
     records, crops = [], {}
     try:
@@ -323,7 +327,8 @@ def run_scenes(specs, work, width, samples, log, ground_chosen=False, named=Fals
         if ground_chosen:
             methods.insert(1 + methods.index(default_method_label(addon)), GROUND_CHOSEN)
         if named:
-            methods.insert(1 + methods.index(default_method_label(addon)), NAMED)
+            at = 1 + methods.index(default_method_label(addon))
+            methods[at:at] = [NAMED, WORLD_HDRI]
     finally:
         new_file()
         addon.close()
