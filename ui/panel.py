@@ -19,6 +19,7 @@ from ..operators import (
     previews,
     sequence,
     shading,
+    world_probe,
 )
 from . import presets
 
@@ -155,6 +156,13 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         if settings.method == "GROUND":
             col.prop(settings, "ground_object")
             col.prop(settings, "surroundings")
+            if settings.surroundings == "WORLD":
+                try:
+                    world = world_probe.user_world(context.scene)
+                    node = world_probe.environment_node(world)
+                    _wrapped(col, f"Reads '{node.image.name}' from world '{world.name}'", context)
+                except ValueError as exc:
+                    _wrapped(col, f"{exc}: Auto is used", context, icon="ERROR")
             if settings.surroundings == "AUTO" and pipeline.camera_sky(context.scene) == 0:
                 _wrapped(
                     col,

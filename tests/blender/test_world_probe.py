@@ -38,7 +38,8 @@ def hdri(name="On Set"):
 
 def world_with(image, turn_deg=0.0):
     world = bpy.data.worlds.new("Set HDRI")
-    world.use_nodes = True
+    if bpy.app.version < (5, 0, 0):  # 5.x: worlds always use nodes (use_nodes deprecated)
+        world.use_nodes = True
     tree = world.node_tree
     background = tree.nodes["Background"]
     background.inputs["Strength"].default_value = STRENGTH
@@ -231,3 +232,16 @@ def test_the_probe_is_the_world_cycles_renders(addon):
     dirs = np.stack([-(xx + 0.5 - 24) / fx, -(yy + 0.5 - 16) / fx, np.ones(xx.shape)], -1)
     want = addon_part("virtual_reflections.probe").sample(probe.pixels, dirs @ probe.rotation.T)
     assert np.abs(got - want).max() < 0.02, np.abs(got - want).max()
+
+
+def test_the_panel_names_the_hdri_it_reads(addon):
+    from test_surroundings import _draw_method_panel
+
+    scene, _ = make_shot()
+    scene.virtual_reflections.surroundings = "WORLD"
+    scene.world = bpy.data.worlds.new("Plain")
+    labels = " ".join(_draw_method_panel(scene).labels)
+    assert "world 'Plain' has no Environment Texture" in labels and "Auto is used" in labels
+    scene.world = world_with(hdri("Set Panorama"))
+    labels = " ".join(_draw_method_panel(scene).labels)
+    assert "Reads 'Set Panorama' from world 'Set HDRI'" in labels, labels
