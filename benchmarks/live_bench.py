@@ -12,7 +12,7 @@ depsgraph_update_post handler (``view_layer.update()``), then runs the timer cal
 - the full map once the object rests (the timer's second pass);
 - an unrelated edit (another object moved) and a move too small to change the rounded bounds.
 
-    .venv/bin/python benchmarks/live_bench.py [--steps 90]
+    .venv/bin/python benchmarks/live_bench.py [--steps 90] [--surroundings WORLD]
     .venv313/bin/python benchmarks/live_bench.py
 """
 
@@ -32,14 +32,34 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from generate_bench import load_addon, scene_with_object  # noqa: E402
 
 
-def build_scene(generate, method="CAMERA"):
+def world_hdri(scene):
+    """One of Blender's bundled HDRIs (1024 x 512) as the scene's world, turned 30 degrees."""
+    folder = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
+    world = bpy.data.worlds.new("On Set")
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(os.path.join(folder, "courtyard.exr"))
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30))
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+
+
+def build_scene(generate, method="CAMERA", surroundings="AUTO"):
     """generate_bench's shot (a 100k-vertex sphere, a 1080p plate, 1024-wide map) plus an
-    unrelated cube, its map generated and Live Update on."""
+    unrelated cube, its map generated and Live Update on. Surroundings WORLD: with a world
+    HDRI (`world_hdri`) read in place of the guessed sky."""
     scene, obj = scene_with_object()
     bpy.ops.mesh.primitive_cube_add(location=(4.0, 2.0, 0.0))
     other = bpy.context.active_object
     settings = scene.virtual_reflections
     settings.method = method
+    settings.surroundings = surroundings
+    if surroundings == "WORLD":
+        world_hdri(scene)
     settings.combine = "REPLACE"
     report = generate.generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [obj])
     assert report.done, report.warnings
@@ -78,17 +98,18 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--steps", type=int, default=90)
     parser.add_argument("--method", choices=("GROUND", "CAMERA", "PAPER"), default="GROUND")
+    parser.add_argument("--surroundings", choices=("AUTO", "WORLD"), default="AUTO")
     args = parser.parse_args()
     addon = load_addon()
     try:
         generate = sys.modules[addon.__name__ + ".operators.generate"]
         live = sys.modules[addon.__name__ + ".operators.live"]
-        scene, obj, other = build_scene(generate, args.method)
+        scene, obj, other = build_scene(generate, args.method, args.surroundings)
         print(
             f"Blender {bpy.app.version_string}, Python {platform.python_version()}, "
             f"NumPy {np.__version__}, {os.cpu_count()} cores; sphere {len(obj.data.vertices)} "
             f"vertices; plate 1920x1080 8-bit; map 1024x512, moving {live.MOVING_WIDTH}x"
-            f"{live.MOVING_WIDTH // 2}; method {args.method}"
+            f"{live.MOVING_WIDTH // 2}; method {args.method}, surroundings {args.surroundings}"
         )
         drag(live, obj, 10, full=False, start=1000)  # warm up: reduced plate, pyramids, caches
         times, reports = drag(live, obj, args.steps, full=False)

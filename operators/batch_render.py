@@ -24,7 +24,7 @@ from ..virtual_reflections.imagefiles import (
     read_rgba,
 )
 from ..virtual_reflections.memory import check_fits, plate_job_bytes
-from . import compositor, plate, sequence, shading
+from . import compositor, plate, sequence, shading, world_probe
 from .batch_options import BatchOptions
 from .batch_signals import raise_if_signalled
 
@@ -71,6 +71,12 @@ def configure(scene, options: BatchOptions):
         settings.ground_object = ground
     if options.surroundings:
         settings.surroundings = options.surroundings.upper()
+    if options.surroundings == "world":  # asked for by name: a world it cannot read is an error
+        try:
+            world_probe.environment_node(world_probe.user_world(scene))
+        except ValueError as exc:
+            reason = str(exc).removeprefix("Surroundings World HDRI: ")
+            raise ValueError(f"--surroundings world: {reason}") from None
     if options.triangles is not None:
         settings.front = "CONTINUOUS" if options.triangles == 0 else "TRIANGLES"
         settings.triangles = max(4, options.triangles)

@@ -25,10 +25,12 @@ from .world import WORLD_RECORD
 CAMERA_TO_LOCAL = np.diag([-1.0, 1.0, -1.0])  # the engine's camera frame -> Blender camera-local
 STOPS_WARNED = 1.0  # a world this many stops off the plate's sky gets a warning
 _read = {}  # the last HDRI's pixels read, by image, file, size, edits and strength
+_probes = {}  # the last Probe made of them, by that and the camera's turn
 
 
 def clear_cache():
     _read.clear()
+    _probes.clear()
 
 
 def user_world(scene):
@@ -168,7 +170,13 @@ def world_probe(scene, projection) -> Probe:
     camera_to_world = projection.world_to_camera[:3, :3].T
     rotation = _turn(node) @ camera_to_world @ CAMERA_TO_LOCAL
     u, _, vt = np.linalg.svd(rotation)  # the camera's matrix may hold rounding: the nearest turn
-    return Probe(pixels, u @ vt)
+    rotation = np.round(u @ vt, 9)
+    turned = (key, rotation.tobytes())
+    probe = _probes.get(turned)
+    if probe is None:  # the same HDRI from the same camera: its resampled maps are kept
+        _probes.clear()
+        probe = _probes[turned] = Probe(pixels, rotation)
+    return probe
 
 
 def exposure_warning(probe: Probe, plate, params) -> str | None:

@@ -171,6 +171,10 @@ def test_the_batch_option_names_the_world(addon):
     options = addon_part("operators.batch_options")
     render = addon_part("operators.batch_render")
     scene, _ = make_shot()
+    scene.world = bpy.data.worlds.new("Plain")
+    with pytest.raises(ValueError, match="^--surroundings world: world 'Plain' has no Environment"):
+        render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="world"))
+    scene.world = world_with(hdri())
     render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="world"))
     assert scene.virtual_reflections.surroundings == "WORLD"
 

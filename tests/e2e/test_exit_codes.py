@@ -61,6 +61,14 @@ def test_exit_codes_under_the_blender_binary(blender, plate, tmp_path):
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert len(list(out.iterdir())) == 3, sorted(p.name for p in out.iterdir())
 
+    # The on-set HDRI asked for by name, in a shot whose world has none: one line, code 2.
+    r = blender(*entry(plate, tmp_path / "out2", "--method", "ground", "--surroundings", "world"))
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    assert errors(r) == [
+        "render_shot: error: --surroundings world: world 'World' has no Environment Texture "
+        "with an image"
+    ], r.stderr[-2000:]
+
     # A failure after writing began (a full disk, under the bpy module:
     # tests/blender/test_batch_failures.py) is exit code 1 the same way: the entry's sys.exit.
     # A script Blender cannot run at all: --python-exit-code makes that 1 too.
