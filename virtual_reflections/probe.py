@@ -58,8 +58,9 @@ class Probe:
         found = self._maps.get(width)
         if found is None:
             source = _shrink(self.pixels, max(1, self.pixels.shape[1] // width))
-            directions = texel_directions("latlong", width)
-            found = self._maps[width] = sample(source, directions @ self.rotation.T)
+            directions = texel_directions("latlong", width, dtype=np.float32)
+            turn = self.rotation.T.astype(np.float32)
+            found = self._maps[width] = sample(source, directions @ turn)
         return found
 
 
@@ -80,22 +81,32 @@ def sample(pixels: np.ndarray, directions: np.ndarray) -> np.ndarray:
     `directions` (..., 3) given in the image's own frame (+Z up) -> (..., 3) float32. The seam
     wraps; rows clamp at the poles (as Blender's Environment Texture, Linear)."""
     h, w = pixels.shape[:2]
-    d = np.asarray(directions, np.float64)
-    length = np.linalg.norm(d, axis=-1)
-    z = np.clip(d[..., 2] / np.where(length > 0, length, 1.0), -1.0, 1.0)
-    x = (0.5 - np.arctan2(d[..., 1], d[..., 0]) / (2.0 * math.pi)) * w - 0.5
-    y = np.arccos(z) / math.pi * h - 0.5
+    d = np.asarray(directions, np.float32)  # a texel is far wider than float32's error
+    shape = d.shape[:-1]
+    d = d.reshape(-1, 3)
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    z = np.clip(d[:, 2] / np.where(length > 0, length, 1.0), -1.0, 1.0)
+    x = np.arctan2(d[:, 1], d[:, 0])
+    x *= np.float32(-w / (2.0 * math.pi))
+    x += np.float32(0.5 * w - 0.5)
+    y = np.arccos(z)
+    y *= np.float32(h / math.pi)
+    y -= np.float32(0.5)
     x0 = np.floor(x)
     y0 = np.clip(np.floor(y), 0, h - 1)
-    fx = (x - x0)[..., None]
-    fy = np.clip(y - y0, 0.0, 1.0)[..., None]
-    y0 = y0.astype(np.int64)
+    fx = (x - x0)[:, None]
+    fy = np.clip(y - y0, 0.0, 1.0)[:, None]
+    y0 = y0.astype(np.intp)
     y1 = np.minimum(y0 + 1, h - 1)
-    x0 = np.mod(x0.astype(np.int64), w)
-    x1 = np.mod(x0 + 1, w)
-    top = pixels[y0, x0] * (1 - fx) + pixels[y0, x1] * fx
-    bottom = pixels[y1, x0] * (1 - fx) + pixels[y1, x1] * fx
-    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+    x0 = np.mod(x0.astype(np.intp), w)
+    x1 = x0 + 1
+    x1[x1 == w] = 0
+    flat = np.ascontiguousarray(pixels, np.float32).reshape(-1, 3)
+    top, bottom = y0 * w, y1 * w
+    out = flat[top + x0] * (1 - fx) + flat[top + x1] * fx
+    out *= 1 - fy
+    out += (flat[bottom + x0] * (1 - fx) + flat[bottom + x1] * fx) * fy
+    return out.reshape(shape + (3,))
 
 
 def with_probe(without: np.ndarray, weight: np.ndarray, probe_map: np.ndarray) -> np.ndarray:
