@@ -32,7 +32,7 @@ import bpy
 
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
-from . import maps, pipeline, plate, previews, shading
+from . import maps, pipeline, plate, previews, shading, world_probe
 from .choices import map_width
 
 MOVING_WIDTH = 256  # map width while the object moves
@@ -83,6 +83,18 @@ def _scene_key(scene):
     )
 
 
+def _reads_world(scene) -> bool:
+    settings = scene.virtual_reflections
+    return settings.method == "GROUND" and settings.surroundings == "WORLD"
+
+
+def _world_image(world):
+    try:
+        return world_probe.environment_node(world).image
+    except ValueError:
+        return None
+
+
 def changed_objects(scene, depsgraph) -> set:
     """Names of ``scene``'s reflective objects a depsgraph update may have moved on screen:
     the objects themselves (transform or geometry), or all of them when the camera or the
@@ -100,6 +112,10 @@ def changed_objects(scene, depsgraph) -> set:
                 names.add(data.name)
         elif isinstance(data, bpy.types.Camera):
             everything = everything or (camera is not None and camera.data == data)
+        elif isinstance(data, (bpy.types.World, bpy.types.Image)) and _reads_world(scene):
+            # Surroundings World HDRI: the artist turning or swapping the HDRI
+            world = world_probe.user_world(scene)
+            everything = everything or data == world or _world_image(world) == data
         elif isinstance(data, bpy.types.Scene) and data == scene:
             key = _scene_key(scene)
             if _state.scene_key.get(scene.name) != key:
@@ -247,7 +263,7 @@ def _rebuild(scene, depsgraph, names, full, report):
         rounded = tuple(float(round(v)) for v in union_box(boxes.values()))
         full_width = map_width(settings.resolution, max(extents.values()))
         own = pipeline.map_params(view, scene, depsgraph, list(boxes))
-        base = (id(pixels), rounded, own)
+        base = (id(pixels), rounded, own, None if probe is None else probe.key)
         built = _state.built.get(map_image.name)
         if built is not None and built[0] == base and (not full or built[1] == full_width):
             continue  # same rounded bounds: the map it has is right

@@ -175,7 +175,7 @@ def world_probe(scene, projection) -> Probe:
     probe = _probes.get(turned)
     if probe is None:  # the same HDRI from the same camera: its resampled maps are kept
         _probes.clear()
-        probe = _probes[turned] = Probe(pixels, rotation)
+        probe = _probes[turned] = Probe(pixels, rotation, key=turned)
     return probe
 
 

@@ -36,10 +36,12 @@ MIN_SHARE = 0.01  # share of the plate that must be above it for an exposure com
 class Probe:
     """An HDRI at infinity: `pixels` (h, w, 3) float32 scene-linear lat-long (Blender's
     equirectangular layout, top row first; any finite values), `rotation` (3, 3) float64 from
-    the camera frame to the image's frame (a proper rotation)."""
+    the camera frame to the image's frame (a proper rotation); `key`: what the caller made it
+    of, so a change shows in its caches."""
 
     pixels: np.ndarray
     rotation: np.ndarray
+    key: tuple = ()  # the caller's name for what it was made of (a cache's key)
     _maps: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):

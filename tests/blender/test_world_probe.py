@@ -249,3 +249,38 @@ def test_the_panel_names_the_hdri_it_reads(addon):
     scene.world = world_with(hdri("Set Panorama"))
     labels = " ".join(_draw_method_panel(scene).labels)
     assert "Reads 'Set Panorama' from world 'Set HDRI'" in labels, labels
+
+
+def test_live_update_follows_the_world_being_turned(addon):
+    """With Live Update on, turning the world's HDRI (its Mapping node) rebuilds the map, and
+    the red patch moves with it; under Auto the same edit does nothing."""
+    live = addon_part("operators.live")
+    try:
+        scene, ball = make_shot()
+        world = world_with(hdri(), turn_deg=90.0)
+        scene.world = world
+        scene.virtual_reflections.surroundings = "WORLD"
+        before, _ = the_map(scene, ball)
+        scene.virtual_reflections.live_update = True
+        bpy.context.view_layer.update()
+        live.flush(scene, full=True)
+        mapping = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value[2] = math.radians(-90.0)
+        bpy.context.view_layer.update()
+        assert live.pending() == {"Ball"}
+        assert live.flush(scene, full=True).done
+        image = addon_part("operators.shading").map_of(ball)
+        after = addon_part("operators.images").read_pixels(image)[..., :3]
+        world_dirs = directions(scene, after)
+        elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
+        band = (elevation > 14) & (elevation < 26)
+        behind = band & (world_dirs[..., 1] < -0.99 * np.cos(np.radians(elevation)))
+        assert before[behind][:, 0].mean() > 0.5 * RED[0] * STRENGTH  # red behind at +90
+        assert after[behind][:, 0].mean() < 0.2  # turned away to +Y at -90
+        scene.virtual_reflections.surroundings = "AUTO"
+        live.flush(scene, full=True)
+        mapping.inputs["Rotation"].default_value[2] = 0.0
+        bpy.context.view_layer.update()
+        assert live.pending() == set()
+    finally:
+        live.disable()
