@@ -189,7 +189,14 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
         width = _width(settings, image)
         centre = _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step)
         shaped = pipeline.map_params(view, scene, depsgraph, objs, centre)
-        built_from = (current.identity, held, shaped, width, image.name_full)
+        built_from = (
+            current.identity,
+            held,
+            shaped,
+            width,
+            image.name_full,
+            None if probe is None else probe.key,
+        )
         if _written.get(image.name) == built_from and tuple(image.size) == (width, width // 2):
             result.unchanged.append(image.name)
             continue

@@ -284,3 +284,32 @@ def test_live_update_follows_the_world_being_turned(addon):
         assert live.pending() == set()
     finally:
         live.disable()
+
+
+def test_every_frame_follows_an_animated_world(addon):
+    """Update Every Frame: the world's turn keyed from +90 to -90 degrees, each frame's map
+    holds the red patch where that frame's world puts it."""
+    sequence = addon_part("operators.sequence")
+    scene, ball = make_shot()
+    world = world_with(hdri(), turn_deg=90.0)
+    scene.world = world
+    scene.virtual_reflections.surroundings = "WORLD"
+    the_map(scene, ball)
+    mapping = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeMapping")
+    rotation = mapping.inputs["Rotation"]
+    rotation.keyframe_insert("default_value", frame=1)
+    rotation.default_value[2] = math.radians(-90.0)
+    rotation.keyframe_insert("default_value", frame=2)
+    red = {}
+    for frame in (1, 2):
+        scene.frame_set(frame)
+        update = sequence.update(scene, bpy.context.evaluated_depsgraph_get(), frame=frame)
+        assert update.maps, update.warnings
+        image = addon_part("operators.shading").map_of(ball)
+        pixels = addon_part("operators.images").read_pixels(image)[..., :3]
+        world_dirs = directions(scene, pixels)
+        elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
+        band = (elevation > 14) & (elevation < 26)
+        behind = band & (world_dirs[..., 1] < -0.99 * np.cos(np.radians(elevation)))
+        red[frame] = pixels[behind][:, 0].mean()
+    assert red[1] > 0.5 * RED[0] * STRENGTH and red[2] < 0.2, red
