@@ -65,6 +65,22 @@ def scene_with_object(width=1920, height=1080, resolution="1024"):
     return scene, obj
 
 
+def world_hdri(scene):
+    """One of Blender's bundled HDRIs (1024 x 512) as the scene's world, turned 30 degrees."""
+    folder = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
+    world = bpy.data.worlds.new("On Set")
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(pathlib.Path(folder) / "courtyard.exr"))
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30))
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+
+
 CASES = {
     "lens": "new lens (every table built)",
     "moved": "object moved",
@@ -88,7 +104,7 @@ def measure(generate, obj, repeat, method):
                 camera.lens = lens + 0.05 * (i + 1)
                 bpy.context.view_layer.update()
             if case == "moved":
-                obj.location.x = 0.01 * (i + 1) + (0.5 if method == "ground" else 0.0)
+                obj.location.x = 0.01 * (i + 1) + (0.5 if method in ("ground", "world") else 0.0)
                 bpy.context.view_layer.update()
             t = time.perf_counter()
             report = generate.generate(
@@ -114,7 +130,11 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=9)
     parser.add_argument(
-        "--method", nargs="+", default=["camera", "ground"], choices=("camera", "ground", "paper")
+        "--method",
+        nargs="+",
+        default=["camera", "ground"],
+        choices=("camera", "ground", "paper", "world"),
+        help="world: Camera View + Ground with Surroundings World HDRI (a bundled HDRI)",
     )
     parser.add_argument("--plate", default="1080p", choices=sorted(PLATES))
     parser.add_argument("--resolution", default="1024", help="1024, AUTO, ... (the panel's)")
@@ -131,8 +151,10 @@ def main():
         f"(resolution {args.resolution})"
     )
     first = None
+    world_hdri(scene)
     for method in args.method:
-        scene.virtual_reflections.method = method.upper()
+        scene.virtual_reflections.method = "GROUND" if method == "world" else method.upper()
+        scene.virtual_reflections.surroundings = "WORLD" if method == "world" else "AUTO"
         moved = measure(generate, obj, args.repeat, method)
         first = first or moved
         print(f"  {method}: moved pose {moved / first:.2f}x the {args.method[0]} method's")

@@ -29,23 +29,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from generate_bench import load_addon, scene_with_object  # noqa: E402
-
-
-def world_hdri(scene):
-    """One of Blender's bundled HDRIs (1024 x 512) as the scene's world, turned 30 degrees."""
-    folder = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
-    world = bpy.data.worlds.new("On Set")
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    tree = world.node_tree
-    env = tree.nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(os.path.join(folder, "courtyard.exr"))
-    mapping = tree.nodes.new("ShaderNodeMapping")
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30))
-    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    tree.links.new(env.outputs["Color"], tree.nodes["Background"].inputs["Color"])
-    scene.world = world
+from generate_bench import load_addon, scene_with_object, world_hdri  # noqa: E402
 
 
 def build_scene(generate, method="CAMERA", surroundings="AUTO"):
