@@ -141,18 +141,22 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     fill = table.fill
     if fill is None or fill.sky is None or not (fill.sky < 1).any():
         return None
+    store = {} if pyramids is None else pyramids  # both gathers share one pyramid
     without, lit = (
         apply_table(
-            dataclasses.replace(table, fill=dataclasses.replace(fill, sky_gain=g)), plate, pyramids
+            dataclasses.replace(table, fill=dataclasses.replace(fill, sky_gain=g)), plate, store
         )
         for g in (0.0, 1.0)
     )
-    seg = table.segmentation
+    seg, first = table.segmentation, table.first_level
+    source = store[(seg.height, seg.width, table.levels, first)]
+    pyramid = source[: pyramid_size(seg.height, seg.width, table.levels, first)]
     shapes = level_shapes(seg.height, seg.width, table.levels)
-    source = build_pyramid(plate, table.levels, table.first_level)
-    level = sky_level(level_view(source, shapes, fill.level, table.first_level), fill.energy)
-    weight = (lit - without).mean(axis=-1) / max(level, 1e-30)
-    return without, np.clip(weight, 0.0, 1.0).astype(np.float32)
+    level = sky_level(level_view(pyramid, shapes, fill.level, first), fill.energy)
+    lit -= without
+    weight = lit.mean(axis=-1)
+    weight *= np.float32(1.0 / max(level, 1e-30))
+    return without, np.clip(weight, 0.0, 1.0, out=weight)
 
 
 def _gather(source, texels, index, weight, out) -> None:
