@@ -116,8 +116,9 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False,
     (as `run_study`'s, with the mirror only, the default method and the plate mean).
     ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is);
     ``split``: each scene's error split (`mirror.error_split`: one more render a scene);
-    ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed), or
-    "artist": each scene's by the kind of its HDRI (`run.surroundings_of`)."""
+    ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed, world:
+    the scene's dome read from its world), or "artist": each scene's by the kind of its HDRI
+    (`run.surroundings_of`)."""
     try:
         from . import mirror
     except ImportError as exc:
