@@ -352,7 +352,7 @@ def gather(table, pixels, report, roughness=0.0, pyramids=None, probe=None):
     `plate.PlateFrame.pyramids`), shared by every map of these pixels. ``probe`` (engine
     probe.Probe, `scene_probe`): the on-set HDRI in place of the guessed sky. No bpy."""
     with report.timed("gather"):
-        parts = None if probe is None else prior_parts(table, pixels, pyramids, whole_sky=True)
+        parts = None if probe is None else prior_parts(table, pixels, pyramids)
         if parts is None:
             env = apply_table(table, pixels, pyramids)
         else:

@@ -17,7 +17,7 @@ import numpy as np
 from .backends import backend, given, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
-from .fill import FILL_BINS, HORIZON_BIN, fill_lookup, fill_profile, fill_values, sky_level
+from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, sky_level
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import CHUNK, for_blocks
 from .params import Params
@@ -132,24 +132,15 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     return out.reshape(table.shape + (3,))
 
 
-def prior_parts(
-    table: LookupTable, plate: np.ndarray, pyramids: dict | None = None, whole_sky: bool = False
-):
+def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None):
     """The map split at its sky prior (fill.py): -> (the map with the prior black (h, w, 3),
     each texel's weight of the prior (h, w) float32 in 0..1), or None when the table has no
-    prior (no world horizon, or the plate shows the sky in every direction the fill covers).
-    The map is linear in the prior, so the map at the prior's own level minus the map with it
-    black, over that level, is the weight (probe.py puts an HDRI in its place).
-    ``whole_sky``: the fill above the horizon is all prior (none of it the plate's sky and
-    sides continued), so the weight covers every direction above the horizon that the plate
-    does not show itself."""
+    prior (no world horizon). The prior is the fill above the horizon: every direction there
+    the plate does not show. The map is linear in the prior, so the map at the prior's own
+    level minus the map with it black, over that level, is the weight (probe.py puts an HDRI
+    in its place)."""
     fill = table.fill
-    if fill is None or fill.sky is None:
-        return None
-    if whole_sky:
-        above = np.tile(np.arange(FILL_BINS) > HORIZON_BIN, fill.sides)
-        fill = dataclasses.replace(fill, sky=np.where(above, 0.0, fill.sky).astype(np.float32))
-    if not (fill.sky < 1).any():
+    if fill is None or fill.sky is None or not (fill.sky < 1).any():
         return None
     store = {} if pyramids is None else pyramids  # both gathers share one pyramid
     without, lit = (

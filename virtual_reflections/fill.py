@@ -136,22 +136,17 @@ REC709_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 HORIZON_BIN = 90  # the bin of elevation 0: bins above it look above the horizon
 
 
-def sky_share(window, counts) -> np.ndarray:
-    """(sides * FILL_BINS,) float32: for each bin above the horizon, the share of its window's
-    plate pixels that are above the horizon too (elevations measured from the world's horizon,
-    `fill_geometry` with `up`); 1 for the bins at or below it. Where it is under 1 the window
-    reaches down into what the plate shows below the horizon (ground, walls): `fill_profile`
-    then blends toward a prior for the sky."""
-    out = np.ones((window.shape[0], FILL_BINS), np.float64)
-    for k in range(window.shape[0]):
-        lo, hi = window[k]
-        total = counts[k][hi] - counts[k][lo]
-        start = np.maximum(lo, HORIZON_BIN + 1)
-        above = np.where(hi > start, counts[k][hi] - counts[k][np.minimum(start, hi)], 0.0)
-        share = np.where(total > 0, above / np.maximum(total, 1e-12), 0.0)
-        bins = np.arange(FILL_BINS) > HORIZON_BIN
-        out[k, bins] = share[bins]
-    return out.ravel().astype(np.float32)
+def sky_share(sides: int) -> np.ndarray:
+    """(sides * FILL_BINS,) float32: how much of each bin's fill is the plate's (elevations
+    from the world's horizon, `fill_geometry` with `up`): 1 at and below the horizon, 0 above
+    it, where `fill_profile` puts the sky prior alone. The plate's own sky shows where the
+    plate sees it (the camera view's texels); continued behind the camera, per elevation, it
+    was mostly the skyline, trees and neighbours the plate shows just above the horizon —
+    darker than the sky above and behind the camera — and the prior, derived for the whole
+    upper hemisphere, predicts that better (docs/scenes3d.md, "The unseen sky")."""
+    out = np.ones((sides, FILL_BINS), np.float32)
+    out[:, HORIZON_BIN + 1 :] = 0.0
+    return out.ravel()
 
 
 def fill_profile(

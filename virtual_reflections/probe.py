@@ -3,13 +3,14 @@
 Camera View + Ground fills the directions no plate pixel shows above the horizon with a sky
 prior: a neutral grey whose level is guessed from the plate (fill.py, `Params.sky_gain`). When
 the artist has the HDRI shot on set (a chrome ball or a panorama, usually already the scene's
-world), that guess can be replaced by the HDRI itself: every texel keeps what the plate gave it
-and takes, for the share the prior had in it, the HDRI along the texel's direction instead.
+world), nothing there has to be guessed: every direction above the horizon that the plate does
+not show takes the HDRI along it instead, and everything the plate shows (and the ground below
+the horizon) stays the plate's.
 
-The prior enters a map linearly (fill_profile blends each elevation bin toward it; every later
-gather is a weighted sum), so a map built with the prior black and one built with it at a known
-level give each texel's prior weight exactly (`envmap.prior_parts`); `with_probe` then adds the
-probe in its place.
+The prior is the whole fill above the horizon and enters a map linearly (every gather is a
+weighted sum), so a map built with the prior black and one built with it at a known level give
+each texel's weight of it exactly (`envmap.prior_parts`); `with_probe` then adds the probe in
+its place.
 
 Frames: the probe is a lat-long image in Blender's equirectangular convention (world +X the
 centre column, +Y a quarter of the width to the left of it, the zenith the top row; top row

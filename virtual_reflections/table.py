@@ -376,7 +376,7 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
         bins,
         window,
         counts,
-        sky_share(window, counts) if params.up is not None else None,
+        sky_share(sides) if params.up is not None else None,
         params.sky_gain,
     )
     _frozen(bins, window, counts)

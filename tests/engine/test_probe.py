@@ -127,11 +127,10 @@ def test_a_bad_probe_is_refused():
         Probe(np.zeros((8, 16), np.float32), np.eye(3))
 
 
-def test_the_whole_unseen_sky_goes_to_the_probe():
-    """A level camera sees sky in its top half, so the fill continues that sky behind it and
-    the prior's share there is small; with ``whole_sky`` every direction above the horizon the
-    plate does not show is the probe's, what the plate shows stays the plate's, and below the
-    horizon nothing changes."""
+def test_the_whole_unseen_sky_is_the_prior():
+    """A level camera sees sky in its top half; behind it, above the horizon, the map is the
+    prior alone (not the plate's sky continued), so the probe takes all of it; what the plate
+    shows stays the plate's, and below the horizon the prior has no part."""
     rng = np.random.default_rng(2)
     plate = (0.2 + 0.2 * rng.random((H, W, 3))).astype(np.float32)
     params = Params(method="camera", intrinsics=INTRINSICS, up=up_when_pitched(0), sky_gain=1.6)
@@ -140,10 +139,8 @@ def test_the_whole_unseen_sky_goes_to_the_probe():
     behind = (d[..., 2] < -0.9) & (d[..., 1] > math.sin(math.radians(3)))
     ahead = d[..., 2] > math.cos(math.radians(3))
     below = d[..., 1] < -math.sin(math.radians(3))
-    _, share_only = prior_parts(table, plate)
-    without, weight = prior_parts(table, plate, whole_sky=True)
-    assert share_only[behind].mean() < 0.5  # the plate's sky, continued, holds most of it
-    assert weight[behind].min() > 0.99  # all of it the probe's
+    without, weight = prior_parts(table, plate)
+    assert weight[behind].min() > 0.99
     assert weight[ahead].max() < 1e-4 and weight[below].max() < 1e-4
     env = apply_table(table, plate)
     np.testing.assert_allclose(without[below], env[below], atol=1e-5)
