@@ -50,7 +50,7 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
     (
         "AUTO",
         "Auto",
-        "Nothing said of the shot: where the photo shows no sky, the sky is taken as a neutral "
+        "Nothing said of the shot: the sky the photo does not show is taken as a neutral "
         f"grey {SKY_GAINS['auto']:g} times the photo's brightness (learnt from HDRIs of every "
         "kind)",
     ),

@@ -73,7 +73,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         name="Surroundings",
         items=SURROUNDINGS_ITEMS,
         default="AUTO",
-        description="What stands around the shot where the photo shows no sky (Camera View + "
+        description="What stands around the shot where the photo does not show it (Camera View + "
         "Ground): how bright the unseen sky above and behind the camera is taken to be",
     )
     front: EnumProperty(

@@ -12,9 +12,9 @@ by `fill_energy` (0.5: the geometric mean of the two). Per side (`fill_sides`): 
 half gives the profile for the left, its right half for the right (`side_weight`: ahead of the
 camera by the azimuth up to the plate's edges, behind it returning to an even blend straight
 behind); both share the band's brightness, so only their colour differs, and `fill_saturation`
-desaturates the tint they share while keeping the difference between them. Where the plate shows
-no sky above the world's horizon, the profile blends toward a sky prior (`sky_share`,
-`fill_profile`'s `sky_gain`; docs/scenes3d.md).
+desaturates the tint they share while keeping the difference between them. With a world horizon
+(`up`), the profile above it is a sky prior alone (`sky_share`, `fill_profile`'s `sky_gain`;
+docs/scenes3d.md).
 
 The profile is built per frame (`fill_profile`) from a coarse mip level (`fill_level`); a table
 keeps, per texel, only where to read it: taps (`fill_taps`) or, on a lat-long, one elevation
@@ -174,7 +174,8 @@ def fill_profile(
 
     `sky` ((sides * FILL_BINS,) from `sky_share`): where under 1, the bin is blended toward a
     neutral sky `sky_gain` times as bright as the whole plate (its log-average brightened by
-    `energy` as above): what a plate without sky says of the sky (docs/scenes3d.md).
+    `energy` as above); with `sky_share`, every bin above the horizon is that sky alone
+    (docs/scenes3d.md, "The unseen sky").
     """
     sides = window.shape[0]
     size = sides * FILL_BINS

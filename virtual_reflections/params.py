@@ -65,7 +65,8 @@ class Params:
                the ground method: the fill of unseen directions is then by elevation above the
                world's horizon rather than by the camera's own elevation.
     sky_gain:  with `up`: how many times brighter than the whole plate the sky is taken to be
-               where the plate shows none above the horizon (fill.sky_share). 1.6: the
+               in the directions above the horizon the plate does not show (fill.sky_share).
+               1.6: the
                gain that best predicts, in display values, the upper hemisphere of six of
                Blender's HDRIs from their lower one (docs/ground.md); SKY_GAINS holds it and
                the gains for open and enclosed surroundings.
