@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from virtual_reflections.colour import linear_to_srgb
+from virtual_reflections.fill import GROUND_BAND_DEG
 
 from .evaluate import hdri_dir
 from .panorama import load_equirect
@@ -43,7 +44,8 @@ def errors(image) -> np.ndarray:
     weight = np.broadcast_to(np.cos(lat)[:, None], (h, w))
     lum = rgb @ LUMA
     up = lat > np.radians(5)
-    down = (lat < np.radians(-5)) & (lat > np.radians(-40))
+    near, far = GROUND_BAND_DEG  # the band the fill measures a plate's level on
+    down = (lat < -np.radians(near)) & (lat > -np.radians(far))
     below, wd = lum[down], weight[down]
     log_average = np.exp((np.log(below + 1e-4) * wd).sum() / wd.sum())
     mean = (below * wd).sum() / wd.sum()

@@ -17,7 +17,7 @@ import numpy as np
 from .backends import backend, given, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
-from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, sky_level
+from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, prior_level
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import CHUNK, for_blocks
 from .params import Params
@@ -153,7 +153,7 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     source = store[(seg.height, seg.width, table.levels, first)]
     pyramid = source[: pyramid_size(seg.height, seg.width, table.levels, first)]
     shapes = level_shapes(seg.height, seg.width, table.levels)
-    level = sky_level(level_view(pyramid, shapes, fill.level, first), fill.energy)
+    level = prior_level(level_view(pyramid, shapes, fill.level, first), fill.bins, fill.energy)
     lit -= without
     weight = lit.mean(axis=-1)
     weight *= np.float32(1.0 / max(level, 1e-30))

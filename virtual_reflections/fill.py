@@ -134,6 +134,11 @@ REC709_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 HORIZON_BIN = 90  # the bin of elevation 0: bins above it look above the horizon
+# The sky prior's level is the plate's GROUND_BAND_DEG (degrees below the world's horizon), as
+# study/sky_prior.py measures each HDRI's lower hemisphere to derive the gain; the whole plate
+# when under MIN_GROUND_SHARE of it lies in that band (a camera looking up).
+GROUND_BAND_DEG = (5.0, 40.0)
+MIN_GROUND_SHARE = 0.05
 
 
 def sky_share(sides: int) -> np.ndarray:
@@ -219,10 +224,23 @@ def fill_profile(
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     if sky is not None and (sky < 1).any():
-        prior = np.float32(sky_gain * sky_level(pixels, energy))
+        prior = np.float32(sky_gain * prior_level(pixels, bins, energy))
         share = sky[:, None]
         out[:] = share * out + (1.0 - share) * prior
     return out
+
+
+def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0) -> float:
+    """The sky prior's level at gain 1 (`fill_profile`): `sky_level` of the pixels
+    `level_pixels` (..., 3) whose elevation bins (`bins`, `fill_geometry` with `up`) lie
+    GROUND_BAND_DEG below the horizon, the band the gain was derived on; of them all when under
+    MIN_GROUND_SHARE of the plate lies there."""
+    pixels = level_pixels.reshape(-1, 3)
+    below = HORIZON_BIN - bins % FILL_BINS  # degrees below the horizon (1-degree bins)
+    band = (below >= GROUND_BAND_DEG[0]) & (below <= GROUND_BAND_DEG[1])
+    if band.mean() >= MIN_GROUND_SHARE:
+        pixels = pixels[band]
+    return sky_level(pixels, energy)
 
 
 def sky_level(level_pixels: np.ndarray, energy: float = 0.0) -> float:
