@@ -51,20 +51,20 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
         "AUTO",
         "Auto",
         "Nothing said of the shot: the sky the photo does not show is taken as a neutral "
-        f"grey {SKY_GAINS['auto']:g} times the photo's brightness (learnt from HDRIs of every "
-        "kind)",
+        f"grey {SKY_GAINS['auto']:g} times the ground's brightness in the photo (learnt from "
+        "HDRIs of every kind)",
     ),
     (
         "OPEN",
         "Open Sky",
         "Outdoors, the sky over most of what stands around (streets, fields, a sunset): the "
-        f"unseen sky is taken brighter, {SKY_GAINS['open']:g} times the photo's brightness",
+        f"unseen sky is taken brighter, {SKY_GAINS['open']:g} times the ground's",
     ),
     (
         "ENCLOSED",
         "Enclosed",
         "A room, a studio or a yard walled in by buildings: what is above and behind the camera "
-        f"is taken darker, {SKY_GAINS['enclosed']:g} times the photo's brightness (for mirrors "
+        f"is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for mirrors "
         "and sharp reflections; rough objects indoors do better under Auto)",
     ),
     (

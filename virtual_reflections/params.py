@@ -64,8 +64,9 @@ class Params:
     up:        the world's up direction in the camera frame (the ground plane's normal), for
                the ground method: the fill of unseen directions is then by elevation above the
                world's horizon rather than by the camera's own elevation.
-    sky_gain:  with `up`: how many times brighter than the whole plate the sky is taken to be
-               in the directions above the horizon the plate does not show (fill.sky_share).
+    sky_gain:  with `up`: how many times brighter than the plate's ground (its band 5-40
+               degrees below the horizon, fill.prior_level) the sky is taken to be in the
+               directions above the horizon the plate does not show (fill.sky_share).
                1.6: the
                gain that best predicts, in display values, the upper hemisphere of six of
                Blender's HDRIs from their lower one (docs/ground.md); SKY_GAINS holds it and
