@@ -508,7 +508,10 @@ def test_the_default_look_is_ray_traced_in_pass_two(interreflect):
         obj.visible_glossy = False
     blind, _, _ = run(interreflect, objects, "auto")
     assert np.abs(blind - first)[upper].mean() < 1e-3
-    assert np.abs(composite - first)[upper].mean() > 5e-3
+    # (The other sphere's upper half reflects the same unseen sky as the prior, so the mean
+    # change is small; where a sphere shows the other's lower half it is large.)
+    seeing = np.abs(composite - first)[upper]
+    assert seeing.mean() > 2e-3 and seeing.max() > 0.1
     assert blind[lower].mean() < first[lower].mean() - 0.01
     # Asked for more passes, it says why it stopped at two.
     for obj in objects:
