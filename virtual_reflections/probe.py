@@ -69,12 +69,10 @@ class Probe:
 
 def _shrink(pixels: np.ndarray, k: int) -> np.ndarray:
     """The mean of every k x k block (the edges' partial blocks dropped)."""
+    k = min(k, pixels.shape[0])  # a block no taller than the image
     if k <= 1:
         return np.asarray(pixels, np.float32)
     h, w = (pixels.shape[0] // k) * k, (pixels.shape[1] // k) * k
-    if h == 0:
-        k = pixels.shape[0]
-        h, w = k, (pixels.shape[1] // k) * k
     blocks = pixels[:h, :w].reshape(h // k, k, w // k, k, 3)
     return blocks.mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
 

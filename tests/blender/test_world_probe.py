@@ -74,6 +74,14 @@ def directions(scene, pixels):
     return d @ to_engine  # each texel's direction in the world
 
 
+def toward(world_dirs, axis, sign):
+    """Texels 14-26 degrees above the horizon (the red patch's band) within 8 degrees of the
+    world's horizontal ``sign`` x ``axis`` (0: X, 1: Y)."""
+    elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
+    band = (elevation > 14) & (elevation < 26)
+    return band & (sign * world_dirs[..., axis] > 0.99 * np.cos(np.radians(elevation)))
+
+
 @pytest.mark.parametrize("combine", ["REPLACE", "WORLD"])
 def test_the_world_hdri_fills_the_unseen_sky(addon, combine):
     scene, ball = make_shot()
@@ -89,13 +97,10 @@ def test_the_world_hdri_fills_the_unseen_sky(addon, combine):
     world_dirs = directions(scene, pixels)
     up = world_dirs[..., 2] > math.cos(math.radians(10))
     np.testing.assert_allclose(pixels[up].mean(0), np.multiply(ZENITH, STRENGTH), rtol=0.05)
-    elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
-    band = (elevation > 14) & (elevation < 26)
-    toward = band & (world_dirs[..., 1] < -0.99 * np.cos(np.radians(elevation)))
-    away = band & (world_dirs[..., 0] > 0.99 * np.cos(np.radians(elevation)))
-    assert pixels[toward][:, 0].mean() > 0.5 * RED[0] * STRENGTH
-    assert toward.any() and away.any()
-    assert pixels[away][:, 0].mean() < 0.2
+    behind, side = toward(world_dirs, 1, -1), toward(world_dirs, 0, 1)
+    assert behind.any() and side.any()
+    assert pixels[behind][:, 0].mean() > 0.5 * RED[0] * STRENGTH
+    assert pixels[side][:, 0].mean() < 0.2
     # what the plate shows is still the plate's
     bounds = addon_part("operators.bounds")
     projection = bounds.camera_projection(scene)
@@ -271,10 +276,7 @@ def test_live_update_follows_the_world_being_turned(addon):
         assert live.flush(scene, full=True).done
         image = addon_part("operators.shading").map_of(ball)
         after = addon_part("operators.images").read_pixels(image)[..., :3]
-        world_dirs = directions(scene, after)
-        elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
-        band = (elevation > 14) & (elevation < 26)
-        behind = band & (world_dirs[..., 1] < -0.99 * np.cos(np.radians(elevation)))
+        behind = toward(directions(scene, after), 1, -1)
         assert before[behind][:, 0].mean() > 0.5 * RED[0] * STRENGTH  # red behind at +90
         assert after[behind][:, 0].mean() < 0.2  # turned away to +Y at -90
         scene.virtual_reflections.surroundings = "AUTO"
@@ -307,9 +309,5 @@ def test_every_frame_follows_an_animated_world(addon):
         assert update.maps, update.warnings
         image = addon_part("operators.shading").map_of(ball)
         pixels = addon_part("operators.images").read_pixels(image)[..., :3]
-        world_dirs = directions(scene, pixels)
-        elevation = np.degrees(np.arcsin(np.clip(world_dirs[..., 2], -1, 1)))
-        band = (elevation > 14) & (elevation < 26)
-        behind = band & (world_dirs[..., 1] < -0.99 * np.cos(np.radians(elevation)))
-        red[frame] = pixels[behind][:, 0].mean()
+        red[frame] = pixels[toward(directions(scene, pixels), 1, -1)][:, 0].mean()
     assert red[1] > 0.5 * RED[0] * STRENGTH and red[2] < 0.2, red
