@@ -144,3 +144,21 @@ def test_the_whole_unseen_sky_is_the_prior():
     assert weight[ahead].max() < 1e-4 and weight[below].max() < 1e-4
     env = apply_table(table, plate)
     np.testing.assert_allclose(without[below], env[below], atol=1e-5)
+
+
+def test_a_probe_wider_than_the_map_is_box_filtered_first():
+    """A 512-wide HDRI on a 64-wide map: a one-texel sun is averaged over its 8 x 8 block
+    (not missed between the map's samples), and a constant stays constant."""
+    img = np.full((256, 512, 3), 0.25, np.float32)
+    img[100, 300] = 1000.0
+    on_map = Probe(img, np.eye(3)).latlong(64)
+    assert on_map.shape == (32, 64, 3)
+
+    def energy(image):  # above the constant, summed over solid angle
+        h, w = image.shape[:2]
+        lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
+        omega = np.cos(lat)[:, None] * (np.pi / h) * (2 * np.pi / w)
+        return float(((image[..., 0] - 0.25) * omega).sum())
+
+    assert energy(on_map) == pytest.approx(energy(img), rel=0.5)
+    assert np.median(on_map) == pytest.approx(0.25, rel=1e-5)
