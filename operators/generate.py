@@ -210,10 +210,12 @@ def steps(scene, depsgraph, objects, pixels=None):
             image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
         with report.timed("wiring"):
             ground = pipeline.ground_lookup(view, scene, depsgraph, [obj], image)
+            shift = pipeline.lobe_shift(scene, [obj])
             try:
                 shading.attach(
-                    obj, image_map, settings.combine, settings.strength, settings.ior, ground
-                )
+                    obj, image_map, settings.combine, settings.strength, settings.ior, ground,
+                    shift,
+                )  # fmt: skip
             except ValueError as exc:  # raised before anything changed (e.g. linked materials)
                 report.warnings.append(str(exc))
                 if not shading.is_attached(obj):

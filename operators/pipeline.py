@@ -22,8 +22,9 @@ from ..virtual_reflections import Params, lookup_table
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
+from ..virtual_reflections.ggx_lobe import dominant_shift
 from ..virtual_reflections.params import SKY_GAINS
-from ..virtual_reflections.prefilter import prefilter_latlong
+from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
 from . import bounds, plate, shading, world_probe
 from .ground_nodes import GroundLookup
@@ -216,6 +217,14 @@ def map_roughness(scene, objects) -> float:
     if scene.virtual_reflections.combine != "MIX":
         return 0.0
     return max((shading.roughness(o) for o in objects), default=0.0)
+
+
+def lobe_shift(scene, objects) -> tuple | None:
+    """Where the material of ``objects`` reads a map pre-filtered for their roughness: the
+    lobe's centre, ggx_lobe.dominant_shift of `map_roughness` (None: the mirror direction,
+    for a map that is not pre-filtered)."""
+    roughness = map_roughness(scene, objects)
+    return dominant_shift(round(roughness, 4)) if roughness > SHARP else None
 
 
 def per_point_ground(scene, objects) -> bool:

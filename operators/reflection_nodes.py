@@ -14,7 +14,7 @@ import bpy
 
 from .ground_nodes import mix_ground
 from .images import CREATED
-from .nodes import find_or_new_group, math_node, new_node, view_ray
+from .nodes import find_or_new_group, math_node, new_node, vector_math_node, view_ray
 
 LOOKUP_GROUP = "VR Camera LatLong"
 
@@ -137,16 +137,19 @@ def env_lookup(nodes, links, direction, image, location):
     return tex.outputs["Color"]
 
 
-def ensure_reflection_group(mode, image, ground=None):
+def ensure_reflection_group(mode, image, ground=None, shift=None):
     """The group "VR Reflection <mode> [<image>]": a shader from the map along the reflection.
 
     Inputs by mode: REPLACE ``Strength``; MODULATE ``Base Color``, ``Strength``;
     MIX ``Shader`` (the material's own surface), ``Strength``, ``IOR``. Output ``Shader``.
     With ``ground`` (a ground_nodes.GroundLookup) the ground is looked up per shading point
-    and mixed over the map (Camera View + Ground). Reused when a group made by this module for
-    the same mode, image and ground exists.
+    and mixed over the map (Camera View + Ground). With ``shift`` (ggx_lobe.dominant_shift of
+    the roughness a Mix look's map is pre-filtered for) the map is read at the centre of the
+    rough lobe rather than along the mirror direction (`_lobe_centre`). Reused when a group
+    made by this module for the same mode, image, ground and shift exists.
     """
     signature = ground.signature() if ground is not None else ""
+    shifted = ",".join(f"{v:.6g}" for v in shift) if shift is not None else ""
     for group in bpy.data.node_groups:
         if (
             group.get(CREATED) == "reflection"
@@ -154,12 +157,14 @@ def ensure_reflection_group(mode, image, ground=None):
             and group.library is None
             and _group_image(group) == image
             and group.get("vr_ground", "") == signature
+            and group.get("vr_shift", "") == shifted
         ):
             return group
     group = bpy.data.node_groups.new(f"{REFLECTION_GROUP} {mode} [{image.name}]", "ShaderNodeTree")
     group[CREATED] = "reflection"
     group["vr_mode"] = mode
     group["vr_ground"] = signature
+    group["vr_shift"] = shifted
 
     iface = group.interface
     if mode == "MIX":
@@ -188,13 +193,14 @@ def ensure_reflection_group(mode, image, ground=None):
     reflect.operation = "REFLECT"
     links.new(view.outputs["Vector"], reflect.inputs[0])
     links.new(geometry.outputs["Normal"], reflect.inputs[1])
-    env = env_lookup(nodes, links, reflect.outputs["Vector"], image, (-300, 300))
+    direction = reflect.outputs["Vector"]
+    if shift is not None:
+        direction = _lobe_centre(nodes, links, geometry, direction, shift)
+    env = env_lookup(nodes, links, direction, image, (-300, 300))
     if ground is not None:
         position = geometry.outputs["Position"]
         box = tuple(g_in.outputs[name] for name in BOX_INPUTS)
-        env = mix_ground(
-            nodes, links, position, reflect.outputs["Vector"], env, ground, (0, 600), (box,)
-        )
+        env = mix_ground(nodes, links, position, direction, env, ground, (0, 600), (box,))
 
     emission = new_node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))
     if mode == "MODULATE":
@@ -226,6 +232,23 @@ def ensure_reflection_group(mode, image, ground=None):
         links.new(g_in.outputs["Strength"], emission.inputs["Strength"])
         links.new(emission.outputs["Emission"], g_out.inputs["Shader"])
     return group
+
+
+def _lobe_centre(nodes, links, geometry, mirror, shift):
+    """normalize(R + t (N - R)), t = x (a + x (b + x c)) clamped to 0..1 and x = 1 - N.I: the
+    centre of a rough lobe for the view (ggx_lobe.dominant_shift); R the ``mirror`` socket."""
+    a, b, c = shift
+    normal, incoming = geometry.outputs["Normal"], geometry.outputs["Incoming"]
+    facing = vector_math_node(nodes, links, "DOT_PRODUCT", "N.I", (-700, 700), normal, incoming)
+    x = math_node(nodes, links, "SUBTRACT", "1 - N.I", (-550, 700), 1.0, facing)
+    t = math_node(nodes, links, "MULTIPLY_ADD", "Shift (c x + b)", (-400, 700), x, c, b)
+    t = math_node(nodes, links, "MULTIPLY_ADD", "Shift (.. x + a)", (-250, 700), x, t, a)
+    t = math_node(nodes, links, "MULTIPLY", "Shift", (-100, 700), x, t)
+    t.node.use_clamp = True
+    toward = vector_math_node(nodes, links, "SUBTRACT", "N - R", (-550, 550), normal, mirror)
+    toward = vector_math_node(nodes, links, "SCALE", "Toward Normal", (-400, 550), toward, t)
+    moved = vector_math_node(nodes, links, "ADD", "R Shifted", (-250, 550), mirror, toward)
+    return vector_math_node(nodes, links, "NORMALIZE", "Lobe Centre", (-100, 550), moved)
 
 
 def _group_image(group):

@@ -92,7 +92,7 @@ def reflecting(scene, names=None) -> dict:
     return found
 
 
-def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
+def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None, shift=None):
     """Put ``image`` (a camera-frame lat-long map) on every material slot of ``obj``.
 
     mode: 'REPLACE' (emission of the map, §3.1's GL replace), 'MODULATE' (map times the
@@ -100,7 +100,8 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
     factor strength x Fresnel(ior)), or 'WORLD' (`attach_world` on the object's scene; the
     materials are left alone). ground: a ground_nodes.GroundLookup for the first three: the
     ground the object stands on is read from the plate per shading point (Camera View +
-    Ground).
+    Ground). shift: for a map pre-filtered for a rough surface, where the lobe's centre lies
+    (ggx_lobe.dominant_shift), read instead of the mirror direction.
 
     Each slot gets an object-level copy of its material (`slot.link = 'OBJECT'`), so the
     original material and a mesh shared with other objects are untouched. An object without
@@ -140,7 +141,7 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None):
     if added_slot:
         obj.data.materials.append(None)
     previous = [(link, object_mat) for link, _, object_mat in slot_states(obj)]
-    group = ensure_reflection_group(mode, image, ground)
+    group = ensure_reflection_group(mode, image, ground, shift)
     copies = {}  # original material (or None for an empty slot) -> our copy
     for slot in obj.material_slots:
         source = slot.material

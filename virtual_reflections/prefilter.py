@@ -6,10 +6,10 @@ the map is convolved with that lobe once, so the lookup returns the blurred surr
 (the "split sum" pre-filtering of real-time rendering, with the view along the normal).
 
 The lobe: GGX with alpha = roughness^2 (Blender's Principled BSDF), its reflected directions
-at normal incidence, times the cosine. Over the angle from the mirror direction it is fitted
-(maximum difference of the cumulative distributions under 0.025 for roughness 0.15 to 0.5) by
-two Gaussians over the sphere: 60 % of standard deviation 1.2 alpha and 40 % of 3.2 alpha
-(`LOBE`; alpha, not a scene, sets them).
+at normal incidence, fitted over the angle from the mirror direction by Gaussians over the
+sphere of widths alpha x 1, 2, 4, ... (ggx_lobe.lobe: the heavy tail of GGX included; alpha,
+not a scene, sets them). Gaussians wider than `COARSE_TEXELS` texels are applied on the map
+reduced by powers of two (the mean of each block, by solid angle) and read back bilinearly.
 
 Each Gaussian is applied separably on the lat-long grid: along each row (longitude, wrapping)
 with a width of sigma / cos(latitude) texels, by FFT, and along each column (latitude) over
@@ -25,14 +25,21 @@ from __future__ import annotations
 
 import numpy as np
 
-LOBE = ((0.6, 1.2), (0.4, 3.2))  # (weight, sigma / alpha) of the Gaussians fitting GGX
+from .ggx_lobe import lobe
+
 SHARP = 0.02  # roughness at or under which the map is left as it is (a mirror)
+MIN_WEIGHT = 0.005  # Gaussians of the fit holding less of the lobe are left out
+COARSE_TEXELS = 6.0  # a Gaussian at least this many texels wide runs on a reduced map
+IDENTITY_TEXELS = 0.25  # one narrower than this (texels) leaves the map as it is
+MERGE_TEXELS = 3.0  # Gaussians narrower than this (texels) are applied as one
 
 
 def lobe_sigmas(roughness: float) -> list[tuple[float, float]]:
-    """[(weight, sigma in radians)] of the lobe of a GGX surface of ``roughness``."""
-    alpha = float(roughness) ** 2
-    return [(w, k * alpha) for w, k in LOBE]
+    """[(weight, sigma in radians)] of the lobe of a GGX surface of ``roughness``
+    (ggx_lobe.lobe without its Gaussians under MIN_WEIGHT; the weights sum to 1)."""
+    kept = [(w, s) for w, s in lobe(round(float(roughness), 4)) if w >= MIN_WEIGHT]
+    total = sum(w for w, _ in kept)
+    return [(w / total, s) for w, s in kept]
 
 
 def prefilter_latlong(env: np.ndarray, roughness: float) -> np.ndarray:
@@ -46,22 +53,113 @@ def prefilter_latlong(env: np.ndarray, roughness: float) -> np.ndarray:
         raise ValueError(f"roughness must be within 0..1, got {roughness}")
     if roughness <= SHARP:
         return env.copy()
+    # Per reduction factor, the Gaussians that run at it, summed there and read back once.
+    levels: dict[int, list[tuple[float, float]]] = {}
+    for weight, sigma in _merged(lobe_sigmas(roughness), np.pi / h):
+        levels.setdefault(_factor(h, sigma), []).append((weight, sigma))
     out = np.zeros_like(env)
-    for weight, sigma in lobe_sigmas(roughness):
-        out += weight * _gaussian(env, sigma)
+    for factor, gaussians in levels.items():
+        source = env if factor == 1 else _downsample(env, factor)
+        spectrum = np.fft.rfft(source, axis=1)
+        level = np.zeros_like(source)
+        for weight, sigma in gaussians:
+            if sigma / (np.pi / h) < IDENTITY_TEXELS:  # narrower than a texel: as it is
+                level += np.float32(weight) * source
+            else:
+                level += np.float32(weight) * _gaussian(spectrum, source.shape, sigma)
+        out += level if factor == 1 else _upsample(level, h, w)
     return out
 
 
-def _gaussian(env, sigma):
-    """A Gaussian of ``sigma`` radians over the sphere, separably: rows then columns."""
-    h, w = env.shape[:2]
+def _merged(gaussians, step):
+    """``gaussians`` with those under MERGE_TEXELS texels of ``step`` radians wide made one, of
+    their summed weight and their mean variance (at that width on the grid they differ by
+    less than a texel's interpolation)."""
+    narrow = [(w, s) for w, s in gaussians if s / step < MERGE_TEXELS]
+    if len(narrow) < 2:
+        return list(gaussians)
+    weight = sum(w for w, _ in narrow)
+    sigma = float(np.sqrt(sum(w * s * s for w, s in narrow) / weight))
+    return [(weight, sigma)] + [(w, s) for w, s in gaussians if s / step >= MERGE_TEXELS]
+
+
+def _factor(h, sigma):
+    """The power of two the map of ``h`` rows is reduced by for a Gaussian of ``sigma``: the
+    largest that keeps it COARSE_TEXELS / 2 texels wide and the map 8 rows high."""
+    texels = sigma / (np.pi / h)
+    factor = 1
+    while (
+        texels / (factor * 2) >= COARSE_TEXELS / 2
+        and h // (factor * 2) >= 8
+        and h % (factor * 2) == 0
+    ):
+        factor *= 2
+    return factor
+
+
+def _downsample(env, factor):
+    """``env`` reduced by ``factor``: each texel's value shared between the coarse texels
+    around its centre as `_upsample` would read it back (bilinear, transposed), so a light
+    keeps its place and its energy; rows weighted by solid angle, columns wrapping round."""
+    h = env.shape[0]
+    lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
+    weight = np.cos(lat)[:, None, None]
+    rows = _spread(env * weight, factor, wrap=False) / _spread(weight, factor, wrap=False)
+    return (_spread(rows.swapaxes(0, 1), factor, wrap=True).swapaxes(0, 1) / factor).astype(
+        np.float32
+    )
+
+
+def _spread(values, factor, wrap):
+    """Along axis 0 of ``values`` (N, ...), N = K x factor: each of the N shared between the
+    two of K nearest its centre, with the weights of linear interpolation (held at the ends,
+    or wrapping round with ``wrap``); (K, ...), summing the shares."""
+    n = values.shape[0]
+    blocks = values.reshape(n // factor, factor, *values.shape[1:])
+    pos = (np.arange(factor) + 0.5) / factor - 0.5  # each sub-texel's offset in coarse texels
+    shape = (1, factor) + (1,) * (values.ndim - 1)
+    own = (blocks * (1 - np.abs(pos)).reshape(shape)).sum(1)
+    before = (blocks * np.maximum(-pos, 0).reshape(shape)).sum(1)  # to the texel before
+    after = (blocks * np.maximum(pos, 0).reshape(shape)).sum(1)  # to the one after
+    out = own
+    if wrap:
+        out = out + np.roll(before, -1, axis=0) + np.roll(after, 1, axis=0)
+    else:
+        out = out.copy()
+        out[:-1] += before[1:]
+        out[0] += before[0]
+        out[1:] += after[:-1]
+        out[-1] += after[-1]
+    return out
+
+
+def _upsample(small, h, w):
+    """``small`` (h', w', C) read bilinearly at the texel centres of an (h, w) lat-long:
+    columns wrapping round, rows held at the poles."""
+    hs, ws = small.shape[:2]
+    y = (np.arange(h) + 0.5) * hs / h - 0.5
+    y0 = np.clip(np.floor(y).astype(int), 0, hs - 1)
+    y1 = np.clip(y0 + 1, 0, hs - 1)
+    fy = np.clip(y - y0, 0.0, 1.0)[:, None, None]
+    x = (np.arange(w) + 0.5) * ws / w - 0.5
+    x0 = np.floor(x).astype(int)
+    fx = (x - x0)[None, :, None]
+    x0, x1 = x0 % ws, (x0 + 1) % ws
+    rows = small[y0] * (1 - fy) + small[y1] * fy
+    return (rows[:, x0] * (1 - fx) + rows[:, x1] * fx).astype(np.float32)
+
+
+def _gaussian(spectrum, shape, sigma):
+    """A Gaussian of ``sigma`` radians over the sphere of the map of ``shape`` whose rows'
+    Fourier transform is ``spectrum``, separably: rows then columns."""
+    h, w = shape[:2]
     step = np.pi / h  # radians per texel
     lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
     # Along each row: sigma / cos(lat) texels of longitude; at the poles a row is one point.
     along = sigma / (step * np.maximum(np.cos(lat), 0.5 / h))
     freq = np.fft.rfftfreq(w)  # cycles per texel
     transfer = np.exp(-2.0 * (np.pi * freq[None, :] * along[:, None]) ** 2)
-    rows = np.fft.irfft(np.fft.rfft(env, axis=1) * transfer[..., None], n=w, axis=1)
+    rows = np.fft.irfft(spectrum * transfer[..., None], n=w, axis=1)
     # Along each column: over the poles onto the column half a turn round, each texel
     # weighted by its solid angle (cos lat): the mean over the lobe, not over texels.
     down = sigma / step
