@@ -31,7 +31,6 @@ SHARP = 0.02  # roughness at or under which the map is left as it is (a mirror)
 MIN_WEIGHT = 0.005  # Gaussians of the fit holding less of the lobe are left out
 COARSE_TEXELS = 6.0  # a Gaussian at least this many texels wide runs on a reduced map
 IDENTITY_TEXELS = 0.25  # one narrower than this (texels) leaves the map as it is
-MERGE_TEXELS = 3.0  # Gaussians narrower than this (texels) are applied as one
 
 
 def lobe_sigmas(roughness: float) -> list[tuple[float, float]]:
@@ -53,34 +52,39 @@ def prefilter_latlong(env: np.ndarray, roughness: float) -> np.ndarray:
         raise ValueError(f"roughness must be within 0..1, got {roughness}")
     if roughness <= SHARP:
         return env.copy()
-    # Per reduction factor, the Gaussians that run at it, summed there and read back once.
+    # Per reduction factor, the Gaussians that run at it; the map reduced by twos (a pyramid),
+    # each level's Gaussians summed there, and the sums read back up level by level.
     levels: dict[int, list[tuple[float, float]]] = {}
-    for weight, sigma in _merged(lobe_sigmas(roughness), np.pi / h):
+    for weight, sigma in lobe_sigmas(roughness):
         levels.setdefault(_factor(h, sigma), []).append((weight, sigma))
-    out = np.zeros_like(env)
-    for factor, gaussians in levels.items():
-        source = env if factor == 1 else _downsample(env, factor)
-        spectrum = np.fft.rfft(source, axis=1)
-        level = np.zeros_like(source)
-        for weight, sigma in gaussians:
-            if sigma / (np.pi / h) < IDENTITY_TEXELS:  # narrower than a texel: as it is
-                level += np.float32(weight) * source
-            else:
-                level += np.float32(weight) * _gaussian(spectrum, source.shape, sigma)
-        out += level if factor == 1 else _upsample(level, h, w)
+    sources = {1: env}
+    factor = 1
+    while factor < max(levels):
+        sources[factor * 2] = _downsample(sources[factor], 2)
+        factor *= 2
+    out = None
+    while factor >= 1:
+        source = sources[factor]
+        if out is not None:
+            out = _upsample(out, *source.shape[:2])
+        if factor in levels:
+            level = _level(source, levels[factor], h)
+            out = level if out is None else out + level
+        factor //= 2
     return out
 
 
-def _merged(gaussians, step):
-    """``gaussians`` with those under MERGE_TEXELS texels of ``step`` radians wide made one, of
-    their summed weight and their mean variance (at that width on the grid they differ by
-    less than a texel's interpolation)."""
-    narrow = [(w, s) for w, s in gaussians if s / step < MERGE_TEXELS]
-    if len(narrow) < 2:
-        return list(gaussians)
-    weight = sum(w for w, _ in narrow)
-    sigma = float(np.sqrt(sum(w * s * s for w, s in narrow) / weight))
-    return [(weight, sigma)] + [(w, s) for w, s in gaussians if s / step >= MERGE_TEXELS]
+def _level(source, gaussians, h):
+    """The sum of ``gaussians`` ((weight, sigma) pairs) applied to ``source``, a level of the
+    pyramid of a map ``h`` rows high."""
+    spectrum = np.fft.rfft(source, axis=1)
+    out = np.zeros_like(source)
+    for weight, sigma in gaussians:
+        if sigma / (np.pi / h) < IDENTITY_TEXELS:  # narrower than a texel: as it is
+            out += np.float32(weight) * source
+        else:
+            out += np.float32(weight) * _gaussian(spectrum, source.shape, sigma)
+    return out
 
 
 def _factor(h, sigma):
@@ -163,13 +167,27 @@ def _gaussian(spectrum, shape, sigma):
     # Along each column: over the poles onto the column half a turn round, each texel
     # weighted by its solid angle (cos lat): the mean over the lobe, not over texels.
     down = sigma / step
-    pad = int(min(h, np.ceil(4.0 * down) + 1))
+    pad = _fast_pad(h, int(min(h, np.ceil(4.0 * down) + 1)))
     weight = np.cos(lat)[:, None, None]
     blurred = [
         _columns(rows * weight, w, pad, down),
         _columns(np.broadcast_to(weight, (h, 1, 1)), 1, pad, down),
     ]
     return (blurred[0] / np.maximum(blurred[1], 1e-12)).astype(np.float32)
+
+
+def _fast_pad(h, pad):
+    """The padding from ``pad`` up (at most ``h``) that makes the padded column h + 2 pad long
+    a product of 2, 3 and 5, which the FFT takes fastest (a length with a large prime factor
+    takes several times longer); ``pad`` when there is none."""
+    for p in range(pad, h + 1):
+        n = h + 2 * p
+        for f in (2, 3, 5):
+            while n % f == 0:
+                n //= f
+        if n == 1:
+            return p
+    return pad
 
 
 def _columns(values, w, pad, down):
