@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from ..virtual_reflections.probe import Probe, exposure_ratio
+from ..virtual_reflections.mapsize import WIDTHS
+from ..virtual_reflections.probe import Probe, exposure_ratio, shrink_to
 from . import images
 from .world import WORLD_RECORD
 
@@ -165,6 +166,9 @@ def world_probe(scene, projection) -> Probe:
         linear, _ = images.read_linear(image)
         linear = np.nan_to_num(linear, nan=0.0, posinf=0.0, neginf=0.0)
         pixels = (np.maximum(linear, 0.0) * np.float32(strength)).astype(np.float32)
+        del linear
+        # No map is wider than WIDTHS[-1]: an 8K HDRI is kept at that width (a quarter of it).
+        pixels = shrink_to(pixels, WIDTHS[-1])
         _read.clear()
         _read[key] = pixels
     camera_to_world = projection.world_to_camera[:3, :3].T

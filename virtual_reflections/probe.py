@@ -67,6 +67,15 @@ class Probe:
         return found
 
 
+def shrink_to(pixels: np.ndarray, width: int) -> np.ndarray:
+    """``pixels`` (h, w, 3) no wider than ``width``: the mean of every k x k block, k = w //
+    width rounded up (an image already that narrow is returned as float32). What a map
+    ``width`` wide reads of a larger HDRI (`Probe.latlong` shrinks by whole blocks too), so
+    an 8K HDRI need not be kept whole."""
+    k = -(-pixels.shape[1] // max(int(width), 1))
+    return _shrink(pixels, k)
+
+
 def _shrink(pixels: np.ndarray, k: int) -> np.ndarray:
     """The mean of every k x k block (the edges' partial blocks dropped)."""
     k = min(k, pixels.shape[0])  # a block no taller than the image

@@ -11,7 +11,7 @@ from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table, prior_parts
 from virtual_reflections.fill import sky_level
 from virtual_reflections.layouts import texel_directions
-from virtual_reflections.probe import Probe, exposure_ratio, sample, with_probe
+from virtual_reflections.probe import Probe, exposure_ratio, sample, shrink_to, with_probe
 
 W, H = 160, 90
 F = 0.5 * W / math.tan(math.radians(30))
@@ -162,3 +162,18 @@ def test_a_probe_wider_than_the_map_is_box_filtered_first():
 
     assert energy(on_map) == pytest.approx(energy(img), rel=0.5)
     assert np.median(on_map) == pytest.approx(0.25, rel=1e-5)
+
+
+def test_an_hdri_wider_than_any_map_is_kept_shrunk_with_its_energy():
+    """`shrink_to`: no wider than asked, by whole blocks (a width not a multiple keeps the
+    blocks that fit), the mean radiance kept, a small sun's energy kept; an image already
+    narrow enough unchanged."""
+    rng = np.random.default_rng(3)
+    hdri = rng.random((1000, 2000, 3)).astype(np.float32)
+    hdri[400, 1200] = 5e4  # a sun one pixel wide
+    small = shrink_to(hdri, 512)
+    assert small.shape == (250, 500, 3)
+    np.testing.assert_allclose(small.mean((0, 1)), hdri.mean((0, 1)), rtol=1e-4)
+    assert small.max() == pytest.approx(5e4 / 16, rel=1e-3)
+    narrow = shrink_to(hdri[:, :400], 512)
+    np.testing.assert_array_equal(narrow, hdri[:, :400])
