@@ -64,8 +64,8 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
         "ENCLOSED",
         "Enclosed",
         "A room, a studio or a yard walled in by buildings: what is above and behind the camera "
-        f"is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for mirrors "
-        "and sharp reflections; rough objects indoors do better under Auto)",
+        f"is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for a "
+        "mirror; in the Glossy look a rough surface's map takes a brighter sky, by roughness)",
     ),
     (
         "WORLD",

@@ -23,7 +23,7 @@ from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.ggx_lobe import dominant_shift
-from ..virtual_reflections.params import SKY_GAINS
+from ..virtual_reflections.params import sky_gain_for
 from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
 from . import bounds, plate, shading, world_probe
@@ -91,7 +91,7 @@ def params(settings, intrinsics=None) -> Params:
         triangles=n,
         method="camera" if camera else "paper",
         intrinsics=tuple(intrinsics) if camera else None,
-        sky_gain=SKY_GAINS.get(settings.surroundings.lower(), SKY_GAINS["auto"]),
+        sky_gain=sky_gain_for(settings.surroundings.lower()),
     )
 
 
@@ -248,8 +248,11 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
         return view.params
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
+    # A map pre-filtered for a rough surface holds the brighter sky such a surface sees.
+    kind = scene.virtual_reflections.surroundings.lower()
+    gain = sky_gain_for(kind, map_roughness(scene, objects))
     if per_point_ground(scene, objects):
-        return dataclasses.replace(view.params, up=up)
+        return dataclasses.replace(view.params, up=up, sky_gain=gain)
     origin = bounds.to_engine_frame(view.projection, point=centre)
     # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
     # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
@@ -259,7 +262,7 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     height = float(centre[2]) - floor
     radius = min(0.5 * float(high[2] - low[2]), height)  # their contact shadow's sphere
     ground = tuple(round(v / step) * step for v in (*origin, height, radius))
-    return dataclasses.replace(view.params, method="ground", ground=ground, up=up)
+    return dataclasses.replace(view.params, method="ground", ground=ground, up=up, sky_gain=gain)
 
 
 def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None:

@@ -11,6 +11,16 @@ then the gain of each kind of surroundings the artist can name in the panel (`KI
 enclosed), derived the same way from the training HDRIs of that kind, and its error on the
 held-out HDRIs of that kind (`SKY_GAINS` in virtual_reflections/params.py holds all three).
 
+Then **rough surfaces**: a rough object reflects the sky blurred by its lobe, which carries a
+sun's or a light's energy into the directions around it, so the grey that predicts what it
+reflects is brighter than a mirror's. How much brighter is taken from a model in which the
+ground is lit by the sky it stands under (its level albedo x irradiance / pi, albedos 0.1-0.4
+pooled; an HDRI's own floor is not that ground: a studio's is seven times darker than its
+lights would make a grey floor, and blurred lights make that the whole answer): per roughness
+in `ROUGHNESS` and kind, the gain fitted against the upper hemisphere pre-filtered for it (the
+add-on's own GGX pre-filter) over the gain fitted against the sharp one (`ROUGH_SKY_RATIOS`;
+`params.sky_gain_for` multiplies the mirror's gain by it).
+
     python -m study sky-prior
 """
 
@@ -20,6 +30,7 @@ import numpy as np
 
 from virtual_reflections.colour import linear_to_srgb
 from virtual_reflections.fill import GROUND_BAND_DEG
+from virtual_reflections.prefilter import prefilter_latlong
 
 from .evaluate import hdri_dir
 from .panorama import load_equirect
@@ -33,6 +44,9 @@ KINDS = {
     "enclosed": ("courtyard", "interior", "studio"),
 }
 GAINS = np.round(np.arange(0.1, 5.01, 0.1), 2)
+ROUGHNESS = (0.15, 0.35, 0.5, 1.0)  # the rough surfaces' knots (params.ROUGH_SKY_RATIOS)
+LIT_GAINS = np.round(np.arange(0.1, 40.01, 0.1), 2)  # the lit-ground model's (rough: larger)
+ALBEDOS = (0.1, 0.2, 0.3, 0.4)  # the lit ground's, pooled
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -59,6 +73,55 @@ def errors(image) -> np.ndarray:
     return np.array(out)
 
 
+def lit_errors(image, seen) -> np.ndarray:
+    """(len(LIT_GAINS),) display-value error of each gain, summed over ALBEDOS, of predicting
+    the upper hemisphere (above 5 degrees) ``seen`` — the image, or it pre-filtered — as a grey
+    at the gain times the level of a ground lit by the image's sky (albedo x irradiance / pi,
+    the irradiance from the image's upper hemisphere)."""
+    rgb, seen = image[..., :3], seen[..., :3]
+    h, w = rgb.shape[:2]
+    lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
+    sky = lat > 0
+    solid = np.cos(lat) * (np.pi / h) * (2 * np.pi / w)
+    irradiance = float(((rgb[sky] @ LUMA) * (np.sin(lat[sky]) * solid[sky])[:, None]).sum())
+    up = lat > np.radians(5)
+    target = linear_to_srgb(np.clip(seen[up], 0, 1)).reshape(-1, 3).astype(np.float64)
+    weight = np.repeat(np.cos(lat[up]), w)[:, None]
+    # sum w (grey - t)^2 = grey^2 S0 - 2 grey S1 + S2 per channel: every gain from three sums.
+    s0, s1, s2 = weight.sum(), (weight * target).sum(0), (weight * target**2).sum(0)
+    out = np.zeros(len(LIT_GAINS))
+    for albedo in ALBEDOS:
+        level = albedo * irradiance / np.pi
+        grey = linear_to_srgb(np.clip(LIT_GAINS * level, 0, 1)).astype(np.float64)[:, None]
+        out += (grey * grey * s0 - 2 * grey * s1 + s2).sum(1) / s0
+    return out
+
+
+def rough_ratios(images) -> dict:
+    """Print the rough surfaces' table; returns {kind: ((roughness, ratio), ...)}: for "auto"
+    (the training HDRIs) and each kind of KINDS (its training HDRIs), the lit-ground model's
+    gain at each roughness of ROUGHNESS over its gain for a mirror."""
+    kinds = {"auto": TRAIN, **{k: [n for n in names if n in TRAIN] for k, names in KINDS.items()}}
+    sharp = {n: lit_errors(image, image) for n, image in images.items()}
+    base = {kind: LIT_GAINS[best_index(sharp, names)] for kind, names in kinds.items()}
+    print()
+    print("Rough surfaces, a ground lit by the sky (albedo 0.1-0.4): the gain fitted against the")
+    print("upper hemisphere pre-filtered for the roughness over the gain for a mirror")
+    print("| roughness | " + " | ".join(kinds) + " |")
+    print("|---|" + "---|" * len(kinds))
+    print("| 0 (mirror) | " + " | ".join(f"{base[k]:.1f}" for k in kinds) + " |")
+    out = {kind: [] for kind in kinds}
+    for roughness in ROUGHNESS:
+        per = {n: lit_errors(im, prefilter_latlong(im, roughness)) for n, im in images.items()}
+        cells = []
+        for kind, names in kinds.items():
+            gain = LIT_GAINS[best_index(per, names)]
+            out[kind].append((roughness, round(float(gain / base[kind]), 2)))
+            cells.append(f"{gain:.1f} (x {out[kind][-1][1]:.2f})")
+        print(f"| {roughness} | " + " | ".join(cells) + " |")
+    return {kind: tuple(knots) for kind, knots in out.items()}
+
+
 def best_index(per: dict, names) -> int:
     """The index in GAINS of the gain minimising the summed error over the HDRIs ``names``."""
     return int(np.argmin(sum(per[name] for name in names if name in per)))
@@ -66,8 +129,9 @@ def best_index(per: dict, names) -> int:
 
 def run() -> dict:
     """Print the tables; returns the gains: {"auto": the one chosen on the training HDRIs,
-    "open": .., "enclosed": ..: each kind's from its training HDRIs}."""
-    per = {p.stem: errors(load_equirect(str(p))) for p in sorted(hdri_dir().glob("*.exr"))}
+    "open": .., "enclosed": ..: each kind's from its training HDRIs, "rough": `rough_ratios`}."""
+    images = {p.stem: load_equirect(str(p))[..., :3] for p in sorted(hdri_dir().glob("*.exr"))}
+    per = {name: errors(image) for name, image in images.items()}
     at = best_index(per, TRAIN)
     one = int(np.argmin(np.abs(GAINS - 1.0)))
     out = {"auto": float(GAINS[at])}
@@ -88,4 +152,5 @@ def run() -> dict:
         held = [n for n in names if n not in TRAIN and n in per]
         checks = ", ".join(f"{n} {per[n][k]:.3f} / {per[n][at]:.3f}" for n in held) or "none"
         print(f"| {kind} | {', '.join(train)} | {out[kind]:.1f} | {checks} |")
+    out["rough"] = rough_ratios(images)
     return out

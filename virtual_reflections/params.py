@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 MAX_TRIANGLES = 1024
 METHODS = ("paper", "camera", "ground")
 METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
@@ -18,6 +20,27 @@ METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method
 # and sunset), "enclosed" a room, a studio or a walled yard (courtyard, interior, studio).
 # `python -m study sky-prior` derives all three; tests/study/test_sky_prior.py ties them to it.
 SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
+# A map pre-filtered for a rough surface (the Mix look) holds a sky that many times brighter,
+# by roughness: a rough lobe carries a light's energy into the directions around it (the same
+# study, a ground lit by the sky; tests/study/test_sky_prior.py ties them to it).
+ROUGH_SKY_RATIOS = {
+    "auto": ((0.15, 1.45), (0.35, 2.73), (0.5, 3.64), (1.0, 11.0)),
+    "open": ((0.15, 1.03), (0.35, 1.14), (0.5, 1.17), (1.0, 2.0)),
+    "enclosed": ((0.15, 1.5), (0.35, 4.17), (0.5, 7.17), (1.0, 29.33)),
+}
+
+
+def sky_gain_for(kind: str, roughness: float = 0.0) -> float:
+    """The sky prior's gain for the surroundings ``kind`` (a key of SKY_GAINS; another, as
+    "world", is "auto") seen by a surface of ``roughness`` (0 for a mirror, or a map that is not
+    pre-filtered): SKY_GAINS times ROUGH_SKY_RATIOS, interpolated linearly in roughness between
+    its knots on the logarithm of the ratio (1 at roughness 0), held beyond the last."""
+    kind = kind if kind in SKY_GAINS else "auto"
+    knots = ((0.0, 1.0), *ROUGH_SKY_RATIOS[kind])
+    r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
+    xs = [k for k, _ in knots]
+    logs = [math.log(v) for _, v in knots]
+    return SKY_GAINS[kind] * math.exp(float(np.interp(r, xs, logs)))
 
 
 @dataclass(frozen=True)

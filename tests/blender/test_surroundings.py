@@ -77,6 +77,28 @@ def test_the_named_surroundings_set_the_unseen_sky(addon):
     assert sky["ENCLOSED"].mean() < sky["AUTO"].mean() < sky["OPEN"].mean()
 
 
+def test_a_rough_surface_in_the_mix_look_sees_a_brighter_sky(addon):
+    """The Mix look pre-filters the map for the material's roughness (0.35), and its sky prior
+    is params.sky_gain_for's, ROUGH_SKY_RATIOS times the mirror's (the straight-up texels, far
+    from the plate's ground, keep the prior's level through the blur); the World look, whose
+    map lights the scene, keeps the mirror's."""
+    params = addon_part("virtual_reflections.params")
+    scene, ball = make_shot()
+    mat = bpy.data.materials.new("Rough")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.35
+    ball.data.materials.append(mat)
+    sky = {}
+    for combine in ("WORLD", "MIX"):
+        scene.virtual_reflections.combine = combine
+        sky[combine], _ = up_and_ahead(scene, ball)
+    ratio = sky["MIX"].mean() / sky["WORLD"].mean()
+    expected = params.sky_gain_for("auto", 0.35) / params.sky_gain_for("auto")
+    assert expected > 2.0
+    assert ratio == pytest.approx(expected, rel=0.05)
+
+
 def test_the_batch_option_sets_the_surroundings(addon):
     """--surroundings reaches the scene's setting; a word it does not know is refused."""
     options = addon_part("operators.batch_options")

@@ -11,7 +11,7 @@ from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.fill import sky_in_view
 from virtual_reflections.layouts import texel_directions
-from virtual_reflections.params import SKY_GAINS
+from virtual_reflections.params import ROUGH_SKY_RATIOS, SKY_GAINS, sky_gain_for
 
 W, H = 160, 90
 F = 0.5 * W / math.tan(math.radians(30))  # 60 degrees across, 36 high
@@ -66,3 +66,21 @@ def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
         assert ratio == pytest.approx(SKY_GAINS[kind] / SKY_GAINS["auto"], rel=0.01), kind
         np.testing.assert_allclose(ahead[kind], plate.reshape(-1, 3).mean(0), rtol=0.05)
     assert sky["enclosed"].mean() < sky["auto"].mean() < sky["open"].mean()
+
+
+def test_the_gain_for_a_rough_surface():
+    """`sky_gain_for`: the mirror's gain at roughness 0 (and for a kind it does not know, or no
+    roughness), the gain times the study's ratio at each knot, between knots between their
+    gains, held beyond the last; growing with roughness."""
+    assert sky_gain_for("auto") == pytest.approx(SKY_GAINS["auto"])
+    assert sky_gain_for("world", 0.0) == pytest.approx(SKY_GAINS["auto"])
+    assert sky_gain_for("open", float("nan")) == pytest.approx(SKY_GAINS["open"])
+    for kind, knots in ROUGH_SKY_RATIOS.items():
+        for roughness, ratio in knots:
+            assert sky_gain_for(kind, roughness) == pytest.approx(SKY_GAINS[kind] * ratio)
+        (a, ra), (b, rb) = knots[0], knots[1]
+        middle = sky_gain_for(kind, 0.5 * (a + b)) / SKY_GAINS[kind]
+        assert min(ra, rb) <= middle <= max(ra, rb)
+        assert sky_gain_for(kind, 5.0) == pytest.approx(sky_gain_for(kind, 1.0))
+        gains = [sky_gain_for(kind, r) for r in np.linspace(0, 1, 21)]
+        assert all(b >= a for a, b in zip(gains, gains[1:])), kind

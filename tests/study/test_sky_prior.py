@@ -6,13 +6,19 @@ pytest.importorskip("bpy", reason="the HDRIs ship with the bpy module")
 
 from study import sky_prior  # noqa: E402
 from virtual_reflections import Params  # noqa: E402
-from virtual_reflections.params import SKY_GAINS  # noqa: E402
+from virtual_reflections.params import ROUGH_SKY_RATIOS, SKY_GAINS  # noqa: E402
 
 
 def test_the_sky_gains_are_the_studys(capsys):
     chosen = sky_prior.run()
     assert Params().sky_gain == pytest.approx(chosen["auto"])
+    rough = chosen.pop("rough")
     assert chosen.keys() == SKY_GAINS.keys()
+    # the rough surfaces' ratios are the study's, and grow with roughness from 1
+    assert rough == ROUGH_SKY_RATIOS
+    for kind, knots in rough.items():
+        ratios = [1.0] + [ratio for _, ratio in knots]
+        assert all(b >= a for a, b in zip(ratios, ratios[1:])), kind
     for kind, gain in SKY_GAINS.items():
         assert gain == pytest.approx(chosen[kind]), kind
     # the kinds order as their names say: open sky brighter than knowing nothing, enclosed darker
