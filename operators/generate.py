@@ -213,9 +213,14 @@ def steps(scene, depsgraph, objects, pixels=None):
             shift = pipeline.lobe_shift(scene, [obj])
             try:
                 shading.attach(
-                    obj, image_map, settings.combine, settings.strength, settings.ior, ground,
-                    shift,
-                )  # fmt: skip
+                    obj,
+                    image_map,
+                    settings.combine,
+                    settings.strength,
+                    settings.ior,
+                    ground=ground,
+                    shift=shift,
+                )
             except ValueError as exc:  # raised before anything changed (e.g. linked materials)
                 report.warnings.append(str(exc))
                 if not shading.is_attached(obj):

@@ -8,8 +8,10 @@ the map is convolved with that lobe once, so the lookup returns the blurred surr
 The lobe: GGX with alpha = roughness^2 (Blender's Principled BSDF), its reflected directions
 at normal incidence, fitted over the angle from the mirror direction by Gaussians over the
 sphere of widths alpha x 1, 2, 4, ... (ggx_lobe.lobe: the heavy tail of GGX included; alpha,
-not a scene, sets them). Gaussians wider than `COARSE_TEXELS` texels are applied on the map
-reduced by powers of two (the mean of each block, by solid angle) and read back bilinearly.
+not a scene, sets them). Gaussians at least `COARSE_TEXELS` texels wide run on a pyramid of
+the map reduced by twos (each texel shared between the coarser texels around it as bilinear
+reading shares them back, so a sun keeps its place and its energy); each level's sum is read
+back up level by level. Column lengths are padded to products of 2, 3 and 5 for the FFT.
 
 Each Gaussian is applied separably on the lat-long grid: along each row (longitude, wrapping)
 with a width of sigma / cos(latitude) texels, by FFT, and along each column (latitude) over

@@ -127,6 +127,28 @@ def _plain(value):
         return repr(value)
 
 
+def render_transparent(scene, path, samples=16):
+    """Render ``scene`` with Cycles on the CPU to the EXR ``path`` (the film transparent, no
+    denoising, the Standard view): (H, W, 4) float32 linear RGBA, top row first."""
+    r = scene.render
+    r.engine = "CYCLES"
+    r.film_transparent = True
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.view_settings.view_transform = "Standard"
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path))
+    w, h = image.size
+    pixels = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    return pixels.reshape(h, w, 4)[::-1]
+
+
 def camera_rays(scene, width, height):
     """World-space rays through the pixel centres of a ``width`` x ``height`` render of the
     scene's camera: ((3,) origin, (height, width, 3) directions), top row first."""

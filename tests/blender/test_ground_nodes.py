@@ -13,7 +13,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from shots import addon_part, camera_rays, ground_plate
+from shots import addon_part, camera_rays, ground_plate, render_transparent
 
 W, H = 240, 135
 RED, BLUE, SKY = np.array((0.9, 0.05, 0.05)), np.array((0.05, 0.05, 0.9)), (0.1, 0.8, 0.1)
@@ -63,23 +63,7 @@ def make_shot_on(scene, ball, combine="REPLACE", method="GROUND", colour=None):
 
 def render(scene, tmp_path):
     """(H, W, 4) float32 linear RGBA, top row first: Cycles, the film transparent."""
-    r = scene.render
-    r.engine = "CYCLES"
-    r.film_transparent = True
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = 16
-    scene.cycles.use_denoising = False
-    scene.view_settings.view_transform = "Standard"
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
-    path = tmp_path / "ball.exr"
-    r.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    pixels = np.empty(W * H * 4, np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(H, W, 4)[::-1]
+    return render_transparent(scene, tmp_path / "ball.exr")
 
 
 def traced(scene):

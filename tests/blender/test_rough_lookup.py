@@ -14,7 +14,7 @@ import math
 
 import bpy
 import numpy as np
-from shots import addon_part, camera_rays, ground_plate
+from shots import addon_part, camera_rays, ground_plate, render_transparent
 
 W, H = 96, 64
 ROUGHNESS = 0.5
@@ -28,6 +28,32 @@ def elevation_map(width):
     return np.repeat(np.repeat(value[:, None, None], width, 1), 3, 2)
 
 
+def rough_metal(roughness):
+    """A Principled BSDF material of ``roughness`` (metallic as the add-on reads it)."""
+    mat = bpy.data.materials.new("Rough Metal")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
+    return mat
+
+
+def camera(scene, location, pitch_deg):
+    """The scene's camera at ``location``, looking along +Y ``pitch_deg`` below level."""
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = location
+    cam.rotation_euler = (math.radians(90.0 - pitch_deg), 0.0, 0.0)
+    cam.data.lens = 35.0
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    return cam
+
+
+def grey_plate(scene):
+    return ground_plate(scene, 0.0, lambda x, y: np.full(x.shape + (3,), 0.3), 0.6)
+
+
 def floor_shot(tmp_path):
     """Render the rough floor in the Mix look with the elevation map: (H, W) red channel, and
     the scene."""
@@ -35,25 +61,14 @@ def floor_shot(tmp_path):
     bpy.ops.mesh.primitive_plane_add(size=60.0, location=(0.0, 20.0, 0.0))
     floor = bpy.context.active_object
     floor.name = "Floor"
-    mat = bpy.data.materials.new("Rough Metal")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = ROUGHNESS
-    floor.data.materials.append(mat)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    cam.location = (0.0, 0.0, 1.0)
-    cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)  # level, looking along +Y
-    cam.data.lens = 35.0
-    scene.render.resolution_x, scene.render.resolution_y = W, H
-    scene.render.resolution_percentage = 100
+    floor.data.materials.append(rough_metal(ROUGHNESS))
+    camera(scene, (0.0, 0.0, 1.0), 0.0)  # level, looking along +Y
     settings = scene.virtual_reflections
     settings.method = "GROUND"
     settings.combine = "MIX"
     settings.strength, settings.ior = 3.0, 4.0  # the map is the whole reflection (3 x F >= 1)
     settings.resolution = "512"
-    settings.plate_image = ground_plate(scene, 0.0, lambda x, y: np.full(x.shape + (3,), 0.3), 0.6)
+    settings.plate_image = grey_plate(scene)
     report = addon_part("operators.generate").generate(
         scene, bpy.context.evaluated_depsgraph_get(), [floor]
     )
@@ -61,21 +76,7 @@ def floor_shot(tmp_path):
     image = addon_part("operators.shading").map_of(floor)
     addon_part("operators.images").write_pixels(image, elevation_map(image.size[0]))
 
-    r = scene.render
-    r.engine = "CYCLES"
-    r.film_transparent = True
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = 8
-    scene.cycles.use_denoising = False
-    scene.view_settings.view_transform = "Standard"
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
-    r.filepath = str(tmp_path / "floor.exr")
-    bpy.ops.render.render(write_still=True)
-    out = bpy.data.images.load(r.filepath)
-    pixels = np.empty(W * H * 4, np.float32)
-    out.pixels.foreach_get(pixels)
-    return pixels.reshape(H, W, 4)[::-1, :, 0], scene
+    return render_transparent(scene, tmp_path / "floor.exr", samples=8)[..., 0], scene
 
 
 def expected(scene):
@@ -116,22 +117,11 @@ def test_a_mirror_floor_keeps_the_mirror_direction(addon):
         scene = bpy.context.scene
         bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 5.0, 0.5))
         ball = bpy.context.active_object
-        mat = bpy.data.materials.new("Metal")
-        if bpy.app.version < (5, 0, 0):
-            mat.use_nodes = True
-        mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
-        ball.data.materials.append(mat)
-        cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-        cam.location = (0.0, 0.0, 1.5)
-        cam.rotation_euler = (math.radians(80.0), 0.0, 0.0)
-        scene.render.resolution_x, scene.render.resolution_y = W, H
+        ball.data.materials.append(rough_metal(roughness))
+        camera(scene, (0.0, 0.0, 1.5), 10.0)
         settings = scene.virtual_reflections
         settings.combine = "MIX"
-        settings.plate_image = ground_plate(
-            scene, 0.0, lambda x, y: np.full(x.shape + (3,), 0.3), 0.6
-        )
+        settings.plate_image = grey_plate(scene)
         report = addon_part("operators.generate").generate(
             scene, bpy.context.evaluated_depsgraph_get(), [ball]
         )
