@@ -127,16 +127,10 @@ def _plain(value):
         return repr(value)
 
 
-def render_transparent(scene, path, samples=16):
-    """Render ``scene`` with Cycles on the CPU to the EXR ``path`` (the film transparent, no
-    denoising, the Standard view): (H, W, 4) float32 linear RGBA, top row first."""
+def render_exr(scene, path):
+    """Render ``scene`` as it is set up to the 32-bit EXR ``path``: (H, W, 4) float32 linear
+    RGBA, top row first."""
     r = scene.render
-    r.engine = "CYCLES"
-    r.film_transparent = True
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_denoising = False
-    scene.view_settings.view_transform = "Standard"
     r.image_settings.file_format = "OPEN_EXR"
     r.image_settings.color_depth = "32"
     r.filepath = str(path)
@@ -147,6 +141,18 @@ def render_transparent(scene, path, samples=16):
     image.pixels.foreach_get(pixels)
     bpy.data.images.remove(image)
     return pixels.reshape(h, w, 4)[::-1]
+
+
+def render_transparent(scene, path, samples=16):
+    """`render_exr` with Cycles on the CPU, the film transparent, no denoising, the Standard
+    view."""
+    scene.render.engine = "CYCLES"
+    scene.render.film_transparent = True
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.view_settings.view_transform = "Standard"
+    return render_exr(scene, path)
 
 
 def camera_rays(scene, width, height):

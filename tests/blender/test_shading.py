@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from shots import node_tree_signature  # noqa: E402
+from shots import node_tree_signature, render_exr  # noqa: E402
 
 bpy = pytest.importorskip("bpy")
 from bpy_extras.object_utils import world_to_camera_view  # noqa: E402
@@ -121,17 +121,8 @@ def render(scene, tmp_path, engine="CYCLES", size=(64, 64), samples=4):
         scene.cycles.use_denoising = False
     else:
         scene.eevee.taa_render_samples = samples
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
     path = tmp_path / f"render_{len(list(tmp_path.glob('render_*.exr')))}.exr"
-    r.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    w, h = image.size
-    pixels = np.empty(w * h * 4, np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(h, w, 4)[::-1, :, :3].copy()
+    return render_exr(scene, path)[..., :3].copy()
 
 
 def projected_centre(scene, obj, size):
