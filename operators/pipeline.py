@@ -13,6 +13,7 @@ build from the previous composite (interreflect.py).
 
 import contextlib
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -165,7 +166,8 @@ def camera_sky(scene) -> float | None:
 def ground_height(scene, depsgraph, objects) -> float:
     """The world height (Z) of the ground the objects stand on: the top of the scene's ground
     object (``settings.ground_object``) when one is chosen, else of a shadow catcher in the
-    scene, else the lowest point of ``objects``."""
+    scene, else of the highest floor under them (`floor_under`: a floating object is seen over
+    the floor the scene holds), else the lowest point of ``objects``."""
     chosen = scene.virtual_reflections.ground_object
     if chosen is None:
         chosen = next(
@@ -178,7 +180,57 @@ def ground_height(scene, depsgraph, objects) -> float:
         )
     if chosen is not None:
         return float(bounds.world_box(chosen, depsgraph)[1][2])
+    chosen = floor_under(scene, depsgraph, objects)
+    if chosen is not None:
+        return float(bounds.world_box(chosen, depsgraph)[1][2])
     return min(float(bounds.world_box(o, depsgraph)[0][2]) for o in objects)
+
+
+def ground_source(scene, depsgraph, objects) -> str:
+    """One line for the panel: where `ground_height` takes the ground of ``objects`` from
+    when no Ground object is chosen."""
+    catcher = next(
+        (o for o in scene.objects if getattr(o, "is_shadow_catcher", False) and o.type == "MESH"),
+        None,
+    )
+    if catcher is not None:
+        return f"Ground: the shadow catcher '{catcher.name}'"
+    if not objects:
+        return "Ground: the objects' lowest point"
+    floor = floor_under(scene, depsgraph, objects)
+    if floor is not None:
+        return f"Ground: '{floor.name}', the floor under the objects"
+    return "Ground: the objects' lowest point (choose the Ground if they float)"
+
+
+FLAT = 0.02  # a mesh whose height is at most this share of its width is a floor
+SUNK = 0.05  # share of the objects' height they may sink into a floor and still stand on it
+
+
+def floor_under(scene, depsgraph, objects):
+    """The highest floor under ``objects`` (an object), or None: a visible mesh of
+    the scene, not one of them, flat (its world box at most FLAT times as high as it is wide:
+    a ground plane, a floor, a table top modelled as a slab), reaching under the centre of
+    their box and topping out below their lowest point (or at most SUNK of their height above
+    it). A scene's ground plane that is no shadow catcher — hidden from render, or rendered
+    as the floor — is so found, and an object floating over it reflects the ground where it
+    is rather than at its own lowest point; a table with legs is not flat."""
+    low, high = objects_box(depsgraph, objects)
+    x, y = 0.5 * (low[:2] + high[:2])
+    ceiling = low[2] + SUNK * (high[2] - low[2])
+    best, top = None, -math.inf
+    for obj in scene.objects:
+        if obj.type != "MESH" or obj in objects or not obj.visible_get():
+            continue
+        size = obj.dimensions  # cheap: most meshes are not flat in any frame
+        if min(size) > FLAT * max(size):
+            continue
+        lo, hi = bounds.world_box(obj, depsgraph)
+        if hi[2] - lo[2] > FLAT * max(hi[0] - lo[0], hi[1] - lo[1]):
+            continue  # flat, but stood on edge or tilted: a wall, a ramp
+        if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and top < hi[2] <= ceiling:
+            best, top = obj, float(hi[2])
+    return best
 
 
 def objects_box(depsgraph, objects) -> tuple:
@@ -219,6 +271,19 @@ def map_roughness(scene, objects) -> float:
     return max((shading.roughness(o) for o in objects), default=0.0)
 
 
+def sky_roughness(scene, objects) -> float:
+    """The roughness whose view of the unseen sky the map of ``objects`` holds
+    (params.sky_gain_for): in the Mix look the roughness it is pre-filtered for
+    (`map_roughness`); in the World look the smoothest object's surface — the renderer's own
+    BSDF blurs the world, and a rough surface's lobe gathers a light's energy that a mirror
+    rarely meets, so a world for rough surfaces only holds the brighter sky they see (a mirror
+    among them keeps the mirror's); 0 in Replace and Modulate, the mirror modes."""
+    combine = scene.virtual_reflections.combine
+    if combine == "WORLD":
+        return min((shading.roughness(o) for o in objects), default=0.0)
+    return map_roughness(scene, objects)
+
+
 def lobe_shift(scene, objects) -> tuple | None:
     """Where the material of ``objects`` reads a map pre-filtered for their roughness: the
     lobe's centre, ggx_lobe.dominant_shift of `map_roughness` (None: the mirror direction,
@@ -248,9 +313,9 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
         return view.params
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
-    # A map pre-filtered for a rough surface holds the brighter sky such a surface sees.
+    # A rough surface sees a brighter sky (`sky_roughness`).
     kind = scene.virtual_reflections.surroundings.lower()
-    gain = sky_gain_for(kind, map_roughness(scene, objects))
+    gain = sky_gain_for(kind, sky_roughness(scene, objects))
     if per_point_ground(scene, objects):
         return dataclasses.replace(view.params, up=up, sky_gain=gain)
     origin = bounds.to_engine_frame(view.projection, point=centre)

@@ -155,6 +155,10 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         col.prop(settings, "method")
         if settings.method == "GROUND":
             col.prop(settings, "ground_object")
+            objects = generate.candidates(context)
+            if settings.ground_object is None and objects:
+                depsgraph = context.evaluated_depsgraph_get()
+                _wrapped(col, pipeline.ground_source(context.scene, depsgraph, objects), context)
             col.prop(settings, "surroundings")
             if settings.surroundings == "WORLD":
                 try:

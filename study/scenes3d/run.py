@@ -221,16 +221,17 @@ def run_scene(
             label, "AUTO"
         )
         times[label] = {}
-        # One Generate per look; in the Mix look one per roughness (the map is pre-filtered
-        # for the material's roughness, read at Generate).
+        # One Generate per look, and in the Mix and World looks one per roughness, read at
+        # Generate: the Mix look's map is pre-filtered for it, and in both the unseen sky is
+        # the one a surface of that roughness sees (params.sky_gain_for).
         runs = [("REPLACE", 0.0)]
-        runs += [("MIX", r) for r in dict.fromkeys(r for _, r, c in MATERIALS if c == "MIX")]
-        runs.append(("WORLD", None))
+        for look in ("MIX", "WORLD"):
+            runs += [(look, r) for r in dict.fromkeys(r for _, r, c in MATERIALS if c == look)]
         for combine, generate_roughness in runs:
             settings.combine = combine
             settings.ior = MIX_IOR if combine == "MIX" else 1.45
             settings.strength = MIX_STRENGTH if combine == "MIX" else 1.0
-            build.set_roughness(material, generate_roughness or 0.0)
+            build.set_roughness(material, generate_roughness)
             depsgraph = bpy.context.evaluated_depsgraph_get()
             t0 = time.perf_counter()
             report = addon.generate.generate(scene, depsgraph, [subject])
@@ -242,7 +243,7 @@ def run_scene(
                     f"{spec.name}: Generate ({label}) made nothing: {report.warnings}"
                 )
             for name, roughness, mode in MATERIALS:
-                if mode != combine or generate_roughness not in (None, roughness):
+                if mode != combine or generate_roughness != roughness:
                     continue
                 build.set_roughness(material, roughness)
                 alone[name][label] = shot(f"{ident} {name}", border)

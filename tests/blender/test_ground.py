@@ -109,21 +109,58 @@ def test_the_sky_stays_the_sky(addon):
     np.testing.assert_allclose(got, SKY, atol=0.1)
 
 
-@pytest.mark.parametrize("chosen", [True, False])
-def test_a_chosen_ground_object_sets_the_plane(addon, chosen):
+@pytest.mark.parametrize("floor", ["chosen", "found", "hidden"])
+def test_the_floor_under_a_floating_object_sets_the_plane(addon, floor):
     """The ball floats 0.3 above the Floor (ground red nearer the camera than Y = -0.8). With
-    the Floor chosen the ground is read at the Floor's height: the ray toward (0.1, -1, -0.3)
-    meets it at Y = -1 (red). Without, the ball's lowest point (Z = 0) is taken for the
-    ground, and the same ray meets that at Y = -0.625, which shows blue. Both darkened by the
-    ball's contact shadow, the share of the sky a sphere of the ball's radius hides there."""
+    the Floor chosen, or found under the ball (a flat mesh, no shadow catcher:
+    `pipeline.floor_under`), the ground is read at the Floor's height: the ray toward
+    (0.1, -1, -0.3) meets it at Y = -1 (red). With the Floor hidden, the ball's lowest point
+    (Z = 0) is taken for the ground, and the same ray meets that at Y = -0.625, which shows
+    blue. Both darkened by the ball's contact shadow, the share of the sky a sphere of the
+    ball's radius hides there."""
     scene, ball = make_shot(ground_object=True, red=lambda x, y: y < -0.8)
-    if chosen:
+    if floor == "chosen":
         scene.virtual_reflections.ground_object = bpy.data.objects["Floor"]
+    elif floor == "hidden":
+        bpy.data.objects["Floor"].hide_set(True)
     image = generate(scene, ball)
     got = map_colour(image, toward(scene, ball, (0.1, -1.0, -0.3)))
-    np.testing.assert_allclose(
-        got, np.multiply(RED if chosen else BLUE, sky_left(chosen)), atol=0.1
-    )
+    seen = floor != "hidden"
+    np.testing.assert_allclose(got, np.multiply(RED if seen else BLUE, sky_left(seen)), atol=0.1)
+
+
+def test_the_floor_under_is_the_highest_flat_mesh_below_the_objects(addon):
+    """`pipeline.floor_under` over a ball whose lowest point is Z = 0.5: of a ground plane
+    (Z = 0), a slab under it (Z = 0.2), a plane beside it (not under), a wall (flat but on
+    edge), a box under it (not flat) and a plane through the ball (above its lowest point),
+    the slab is the floor; hidden, the ground plane; with no floor, None and the ball's lowest
+    point. The panel's line (`ground_source`) names it."""
+    pipeline = addon_part("operators.pipeline")
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 1.0))
+    ball = bpy.context.active_object
+
+    def plane(name, size, location, rotation=(0.0, 0.0, 0.0)):
+        bpy.ops.mesh.primitive_plane_add(size=size, location=location, rotation=rotation)
+        bpy.context.active_object.name = name
+        return bpy.context.active_object
+
+    ground = plane("Ground", 40.0, (0.0, 0.0, 0.0))
+    slab = plane("Slab", 3.0, (0.0, 0.0, 0.2))
+    plane("Beside", 1.0, (3.0, 0.0, 0.4))
+    plane("Wall", 4.0, (0.0, 0.5, 2.0), rotation=(math.radians(90), 0.0, 0.0))
+    plane("Through", 4.0, (0.0, 0.0, 0.7))
+    bpy.ops.mesh.primitive_cube_add(size=0.4, location=(0.0, 0.0, 0.2))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert pipeline.floor_under(scene, depsgraph, [ball]) == slab
+    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.2)
+    assert "'Slab', the floor under" in pipeline.ground_source(scene, depsgraph, [ball])
+    slab.hide_set(True)
+    assert pipeline.floor_under(scene, depsgraph, [ball]) == ground
+    ground.hide_set(True)
+    assert pipeline.floor_under(scene, depsgraph, [ball]) is None
+    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
+    assert "lowest point" in pipeline.ground_source(scene, depsgraph, [ball])
 
 
 def sky_left(chosen):

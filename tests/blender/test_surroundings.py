@@ -37,13 +37,15 @@ def make_shot():
     return scene, ball
 
 
-def up_and_ahead(scene, ball):
+def up_and_ahead(scene, ball, others=()):
     """The map's mean colour within 20 degrees of straight up, and within 3 degrees of the
-    direction toward the ground 3 m ahead of the ball (in view, out of its contact shadow)."""
+    direction toward the ground 3 m ahead of the ball (in view, out of its contact shadow);
+    ``others``: more objects to Generate with it."""
+    objects = [ball, *others]
     report = addon_part("operators.generate").generate(
-        scene, bpy.context.evaluated_depsgraph_get(), [ball]
+        scene, bpy.context.evaluated_depsgraph_get(), objects
     )
-    assert report.done == ["Ball"], report.warnings
+    assert report.done == [o.name for o in objects], report.warnings
     image = addon_part("operators.shading").map_of(ball)
     pixels = addon_part("operators.images").read_pixels(image)[..., :3]
     bounds = addon_part("operators.bounds")
@@ -77,26 +79,39 @@ def test_the_named_surroundings_set_the_unseen_sky(addon):
     assert sky["ENCLOSED"].mean() < sky["AUTO"].mean() < sky["OPEN"].mean()
 
 
-def test_a_rough_surface_in_the_mix_look_sees_a_brighter_sky(addon):
-    """The Mix look pre-filters the map for the material's roughness (0.35), and its sky prior
-    is params.sky_gain_for's, ROUGH_SKY_RATIOS times the mirror's (the straight-up texels, far
-    from the plate's ground, keep the prior's level through the blur); the World look, whose
-    map lights the scene, keeps the mirror's."""
-    params = addon_part("virtual_reflections.params")
-    scene, ball = make_shot()
-    mat = bpy.data.materials.new("Rough")
+def rough_material(name, roughness):
+    mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
-    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.35
-    ball.data.materials.append(mat)
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = roughness
+    return mat
+
+
+def test_a_rough_surface_sees_a_brighter_sky(addon):
+    """A rough surface (0.35) sees a brighter unseen sky than a mirror: params.sky_gain_for's,
+    ROUGH_SKY_RATIOS times the mirror's (the straight-up texels, far from the plate's ground,
+    keep the prior's level through the blur) — in the Mix look, whose map is pre-filtered for
+    the roughness, and in the World look, whose map lights the surface; Replace, a mirror
+    mode, keeps the mirror's, and so does a world that also lights a mirror."""
+    params = addon_part("virtual_reflections.params")
+    scene, ball = make_shot()
+    ball.data.materials.append(rough_material("Rough", 0.35))
     sky = {}
-    for combine in ("WORLD", "MIX"):
+    for combine in ("REPLACE", "WORLD", "MIX"):
         scene.virtual_reflections.combine = combine
         sky[combine], _ = up_and_ahead(scene, ball)
-    ratio = sky["MIX"].mean() / sky["WORLD"].mean()
     expected = params.sky_gain_for("auto", 0.35) / params.sky_gain_for("auto")
     assert expected > 2.0
-    assert ratio == pytest.approx(expected, rel=0.05)
+    for combine in ("WORLD", "MIX"):
+        ratio = sky[combine].mean() / sky["REPLACE"].mean()
+        assert ratio == pytest.approx(expected, rel=0.05), combine
+    # A mirror beside it: the world they share holds the mirror's sky.
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(1.2, -0.8, 0.3))
+    mirror = bpy.context.active_object
+    mirror.data.materials.append(rough_material("Mirror", 0.0))
+    scene.virtual_reflections.combine = "WORLD"
+    shared, _ = up_and_ahead(scene, ball, [mirror])
+    assert shared.mean() / sky["REPLACE"].mean() == pytest.approx(1.0, rel=0.05)
 
 
 def test_the_batch_option_sets_the_surroundings(addon):
@@ -128,7 +143,7 @@ class _Layout:
         self.labels.append(text)
 
 
-def _draw_method_panel(scene):
+def _draw_method_panel(scene, selected=()):
     panel = addon_part("ui.panel")
     layout = _Layout()
     context = type(
@@ -139,6 +154,8 @@ def _draw_method_panel(scene):
             "region": type("Region", (), {"width": 300})(),
             "preferences": type("P", (), {"system": type("S", (), {"ui_scale": 1.0})()})(),
             "active_object": None,
+            "selected_objects": list(selected),
+            "evaluated_depsgraph_get": staticmethod(bpy.context.evaluated_depsgraph_get),
         },
     )()
     panel.VR_PT_method.draw(type("Panel", (), {"layout": layout})(), context)
@@ -161,3 +178,18 @@ def test_the_panel_asks_for_the_surroundings_when_the_camera_sees_no_sky(addon):
     assert not any("sky" in text for text in _draw_method_panel(scene).labels)
     scene.virtual_reflections.method = "CAMERA"  # no ground method: no Surroundings
     assert "surroundings" not in _draw_method_panel(scene).props
+
+
+def test_the_panel_says_where_the_ground_is_taken_from(addon):
+    """No Ground chosen: the panel names the floor under the selected objects, or says the
+    objects' lowest point is taken; with a Ground chosen, the field says it all."""
+    scene, ball = make_shot()
+    lines = [t for t in _draw_method_panel(scene, [ball]).labels if t.startswith("Ground")]
+    assert len(lines) == 1 and "lowest point" in lines[0], lines
+    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.2))
+    floor = bpy.context.active_object
+    floor.name = "Floor"
+    drawn = _draw_method_panel(scene, [ball]).labels
+    assert any("'Floor', the floor under" in t for t in drawn), drawn
+    scene.virtual_reflections.ground_object = floor
+    assert not any(t.startswith("Ground") for t in _draw_method_panel(scene, [ball]).labels)
