@@ -164,43 +164,40 @@ def camera_sky(scene) -> float | None:
 
 
 def ground_height(scene, depsgraph, objects) -> float:
-    """The world height (Z) of the ground the objects stand on: the top of the scene's ground
-    object (``settings.ground_object``) when one is chosen, else of a shadow catcher in the
-    scene, else of the highest floor under them (`floor_under`: a floating object is seen over
-    the floor the scene holds), else the lowest point of ``objects``."""
-    chosen = scene.virtual_reflections.ground_object
-    if chosen is None:
-        chosen = next(
-            (
-                o
-                for o in scene.objects
-                if getattr(o, "is_shadow_catcher", False) and o.type == "MESH"
-            ),
-            None,
-        )
-    if chosen is not None:
-        return float(bounds.world_box(chosen, depsgraph)[1][2])
-    chosen = floor_under(scene, depsgraph, objects)
-    if chosen is not None:
-        return float(bounds.world_box(chosen, depsgraph)[1][2])
+    """The world height (Z) of the ground the objects stand on: the top of `ground_of`'s
+    object, else the lowest point of ``objects``."""
+    ground = ground_of(scene, depsgraph, objects)
+    if ground is not None:
+        return float(bounds.world_box(ground, depsgraph)[1][2])
     return min(float(bounds.world_box(o, depsgraph)[0][2]) for o in objects)
 
 
-def ground_source(scene, depsgraph, objects) -> str:
-    """One line for the panel: where `ground_height` takes the ground of ``objects`` from
-    when no Ground object is chosen."""
+def ground_of(scene, depsgraph, objects):
+    """The object whose top is the ground ``objects`` stand on, or None (their lowest point
+    is): the scene's ground object (``settings.ground_object``) when one is chosen, else a
+    shadow catcher in the scene, else the highest floor under them (`floor_under`: a
+    floating object is seen over the floor the scene holds)."""
+    chosen = scene.virtual_reflections.ground_object
+    if chosen is not None:
+        return chosen
     catcher = next(
         (o for o in scene.objects if getattr(o, "is_shadow_catcher", False) and o.type == "MESH"),
         None,
     )
     if catcher is not None:
-        return f"Ground: the shadow catcher '{catcher.name}'"
-    if not objects:
-        return "Ground: the objects' lowest point"
-    floor = floor_under(scene, depsgraph, objects)
-    if floor is not None:
-        return f"Ground: '{floor.name}', the floor under the objects"
-    return "Ground: the objects' lowest point (choose the Ground if they float)"
+        return catcher
+    return floor_under(scene, depsgraph, objects) if objects else None
+
+
+def ground_source(scene, depsgraph, objects) -> str:
+    """One line for the panel: where `ground_height` takes the ground of ``objects`` from
+    when no Ground object is chosen."""
+    ground = ground_of(scene, depsgraph, objects)
+    if ground is None:
+        return "Ground: the objects' lowest point (choose the Ground if they float)"
+    if getattr(ground, "is_shadow_catcher", False):
+        return f"Ground: the shadow catcher '{ground.name}'"
+    return f"Ground: '{ground.name}', the floor under the objects"
 
 
 FLAT = 0.02  # a mesh whose height is at most this share of its width is a floor

@@ -552,16 +552,19 @@ def test_a_run_stopped_in_the_traced_render_puts_the_scene_back(interreflect):
     assert traced_leftovers() == [] and scene_state() == before
 
 
-def test_the_traced_pass_hides_a_shadow_catcher_from_the_mirrors_and_puts_it_back(
-    interreflect, monkeypatch
+@pytest.mark.parametrize("kind", ["shadow catcher", "floor"])
+def test_the_traced_pass_hides_the_ground_from_the_mirrors_and_puts_it_back(
+    interreflect, monkeypatch, kind
 ):
-    # The dome reads the ground from the plate; a shadow catcher (or the chosen Ground object)
-    # under the mirrors would hide it from them, so it is hidden from glossy rays for the
-    # render, and only for the render.
+    # The dome reads the ground from the plate; a shadow catcher, the chosen Ground object or
+    # the floor found under the mirrors (pipeline.ground_of) would hide it from them, so it is
+    # hidden from glossy rays for the render, and only for the render.
     scene, objects = ground_scene()
     bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.8))
     catcher = bpy.context.active_object
-    catcher.is_shadow_catcher = True
+    catcher.is_shadow_catcher = kind == "shadow catcher"
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert interreflect.generate.pipeline.ground_of(scene, depsgraph, objects) == catcher
     seen = []
     read = interreflect._read_render
 
