@@ -205,13 +205,14 @@ SUNK = 0.05  # share of the objects' height they may sink into a floor and still
 
 
 def floor_under(scene, depsgraph, objects):
-    """The highest floor under ``objects`` (an object), or None: a visible mesh of
-    the scene, not one of them, flat (its world box at most FLAT times as high as it is wide:
-    a ground plane, a floor, a table top modelled as a slab), reaching under the centre of
-    their box and topping out below their lowest point (or at most SUNK of their height above
-    it). A scene's ground plane that is no shadow catcher — hidden from render, or rendered
-    as the floor — is so found, and an object floating over it reflects the ground where it
-    is rather than at its own lowest point; a table with legs is not flat."""
+    """The floor under ``objects`` (an object), or None: of the visible meshes of the scene
+    (not theirs) that reach under the centre of their box and top out below their lowest
+    point (or at most SUNK of their height above it), the highest, when it is flat — its
+    world box at most FLAT times as high as it is wide: a ground plane, a floor, a slab. A
+    scene's ground plane that is no shadow catcher (hidden from render, or rendered as the
+    floor) is so found, and an object floating over it reflects the ground where it is rather
+    than at its own lowest point. When the highest is not flat (a column, a pedestal, a table
+    with legs, a box) the objects stand on it: None, and their lowest point is its top."""
     low, high = objects_box(depsgraph, objects)
     x, y = 0.5 * (low[:2] + high[:2])
     ceiling = low[2] + SUNK * (high[2] - low[2])
@@ -219,15 +220,19 @@ def floor_under(scene, depsgraph, objects):
     for obj in scene.objects:
         if obj.type != "MESH" or obj in objects or not obj.visible_get():
             continue
-        size = obj.dimensions  # cheap: most meshes are not flat in any frame
-        if min(size) > FLAT * max(size):
+        # Cheap first: a mesh's box lies within its diagonal of its origin (as a rule; one
+        # that does not is missed, and the lowest point stands in, as without a floor).
+        reach = obj.dimensions.length
+        origin = obj.matrix_world.translation
+        if math.hypot(origin.x - x, origin.y - y) > reach or origin.z - reach > ceiling:
             continue
         lo, hi = bounds.world_box(obj, depsgraph)
-        if hi[2] - lo[2] > FLAT * max(hi[0] - lo[0], hi[1] - lo[1]):
-            continue  # flat, but stood on edge or tilted: a wall, a ramp
         if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and top < hi[2] <= ceiling:
-            best, top = obj, float(hi[2])
-    return best
+            best, top, box = obj, float(hi[2]), (lo, hi)
+    if best is None:
+        return None
+    lo, hi = box
+    return best if hi[2] - lo[2] <= FLAT * max(hi[0] - lo[0], hi[1] - lo[1]) else None
 
 
 def objects_box(depsgraph, objects) -> tuple:

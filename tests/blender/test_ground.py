@@ -129,12 +129,13 @@ def test_the_floor_under_a_floating_object_sets_the_plane(addon, floor):
     np.testing.assert_allclose(got, np.multiply(RED if seen else BLUE, sky_left(seen)), atol=0.1)
 
 
-def test_the_floor_under_is_the_highest_flat_mesh_below_the_objects(addon):
+def test_the_floor_under_is_the_highest_mesh_below_the_objects_when_flat(addon):
     """`pipeline.floor_under` over a ball whose lowest point is Z = 0.5: of a ground plane
-    (Z = 0), a slab under it (Z = 0.2), a plane beside it (not under), a wall (flat but on
-    edge), a box under it (not flat) and a plane through the ball (above its lowest point),
-    the slab is the floor; hidden, the ground plane; with no floor, None and the ball's lowest
-    point. The panel's line (`ground_source`) names it."""
+    (Z = 0), a slab under it (Z = 0.2), a plane beside it (not under), a wall (on edge, beside)
+    and a plane through the ball (above its lowest point), the slab is the floor; hidden, the
+    ground plane. A column under the ball, up to its lowest point, is what it stands on (not
+    flat): None, and the ball's lowest point is the ground, as with no floor at all. The
+    panel's line (`ground_source`) names the floor."""
     pipeline = addon_part("operators.pipeline")
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 1.0))
@@ -150,13 +151,18 @@ def test_the_floor_under_is_the_highest_flat_mesh_below_the_objects(addon):
     plane("Beside", 1.0, (3.0, 0.0, 0.4))
     plane("Wall", 4.0, (0.0, 0.5, 2.0), rotation=(math.radians(90), 0.0, 0.0))
     plane("Through", 4.0, (0.0, 0.0, 0.7))
-    bpy.ops.mesh.primitive_cube_add(size=0.4, location=(0.0, 0.0, 0.2))
     depsgraph = bpy.context.evaluated_depsgraph_get()
     assert pipeline.floor_under(scene, depsgraph, [ball]) == slab
     assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.2)
     assert "'Slab', the floor under" in pipeline.ground_source(scene, depsgraph, [ball])
     slab.hide_set(True)
     assert pipeline.floor_under(scene, depsgraph, [ball]) == ground
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.1, depth=0.5, location=(0.0, 0.0, 0.25))
+    column = bpy.context.active_object
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert pipeline.floor_under(scene, depsgraph, [ball]) is None
+    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
+    column.hide_set(True)
     ground.hide_set(True)
     assert pipeline.floor_under(scene, depsgraph, [ball]) is None
     assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
