@@ -218,7 +218,7 @@ def add_ground(scene):
     """A shadow-catcher plane under the scene's visible meshes, so they do not float over the
     photograph: at the lowest point of their bounding boxes (Z = 0 without meshes), 10x their
     extent (at least 20 m) across, flagged ``is_shadow_catcher`` -- the ground
-    `pipeline.ground_height` finds -- and tagged CREATED. Returns its record (the object's
+    `floor.ground_height` finds -- and tagged CREATED. Returns its record (the object's
     name), or None when the scene has a ground already (a chosen Ground object or a shadow
     catcher)."""
     if scene.virtual_reflections.ground_object is not None:

@@ -44,7 +44,7 @@ import bpy
 import numpy as np
 
 from ..virtual_reflections.composite import union_box
-from . import maps, pipeline, plate, shading
+from . import floor, maps, pipeline, plate, shading
 
 # --- bounds over time --------------------------------------------------------------------------
 
@@ -216,7 +216,7 @@ def _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step):
     ground seen from it steadies with the box); None for the other methods."""
     if settings.method != "GROUND":
         return None
-    raw = pipeline.objects_centre(depsgraph, objs)
+    raw = floor.objects_centre(depsgraph, objs)
     # (scene, map, "centre") for the handler's filters: cleared with the scene's on render_init
     centre_key = (*key, "centre") if isinstance(key, tuple) else (key, "centre")
     held = filters.setdefault(centre_key, BoundsFilter(unit=None))

@@ -34,7 +34,7 @@ import contextlib
 import bpy
 from mathutils import Vector
 
-from . import ground_nodes, pipeline, reflection_nodes, shading
+from . import floor, ground_nodes, reflection_nodes, shading
 from .images import CREATED
 from .nodes import new_node, vector_math_node, view_ray
 
@@ -195,7 +195,7 @@ def _mirror_of(material):
 def traced(scene, objects):
     """While inside: ``objects`` (with Generate's Replace or Modulate look, `applies`) are
     mirrors of the look's colour (`_mirror_of`), a dome around the scene gives every ray that
-    meets nothing else the default's lookup, the scene's ground (`pipeline.ground_of`: the
+    meets nothing else the default's lookup, the scene's ground (`floor.ground_of`: the
     chosen object, or the floor under the objects) and shadow catchers are hidden from glossy
     rays (the dome reads the ground from the plate), and the glossy bounces
     are at least MIN_GLOSSY_BOUNCES. Everything is put back and what was made deleted on
@@ -232,7 +232,7 @@ def traced(scene, objects):
                     made.append(mirrors[slot.material.name])
                 slots.append((slot, slot.material))
                 slot.material = mirrors[slot.material.name]
-        chosen = pipeline.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
+        chosen = floor.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
         ours = set(objects)
         for obj in scene.objects:
             hides_ground = obj is chosen or getattr(obj, "is_shadow_catcher", False)

@@ -11,6 +11,7 @@ import bpy
 
 from ..operators import (
     compositor,
+    floor,
     generate,
     live,
     maps,
@@ -158,7 +159,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
             objects = generate.candidates(context)
             if settings.ground_object is None and objects:
                 depsgraph = context.evaluated_depsgraph_get()
-                _wrapped(col, pipeline.ground_source(context.scene, depsgraph, objects), context)
+                _wrapped(col, floor.ground_source(context.scene, depsgraph, objects), context)
             col.prop(settings, "surroundings")
             if settings.surroundings == "WORLD":
                 try:

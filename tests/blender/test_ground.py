@@ -113,7 +113,7 @@ def test_the_sky_stays_the_sky(addon):
 def test_the_floor_under_a_floating_object_sets_the_plane(addon, floor):
     """The ball floats 0.3 above the Floor (ground red nearer the camera than Y = -0.8). With
     the Floor chosen, or found under the ball (a flat mesh, no shadow catcher:
-    `pipeline.floor_under`), the ground is read at the Floor's height: the ray toward
+    `floor.floor_under`), the ground is read at the Floor's height: the ray toward
     (0.1, -1, -0.3) meets it at Y = -1 (red). With the Floor hidden, the ball's lowest point
     (Z = 0) is taken for the ground, and the same ray meets that at Y = -0.625, which shows
     blue. Both darkened by the ball's contact shadow, the share of the sky a sphere of the
@@ -130,13 +130,13 @@ def test_the_floor_under_a_floating_object_sets_the_plane(addon, floor):
 
 
 def test_the_floor_under_is_the_highest_mesh_below_the_objects_when_flat(addon):
-    """`pipeline.floor_under` over a ball whose lowest point is Z = 0.5: of a ground plane
+    """`floor.floor_under` over a ball whose lowest point is Z = 0.5: of a ground plane
     (Z = 0), a slab under it (Z = 0.2), a plane beside it (not under), a wall (on edge, beside)
     and a plane through the ball (above its lowest point), the slab is the floor; hidden, the
     ground plane. A column under the ball, up to its lowest point, is what it stands on (not
     flat): None, and the ball's lowest point is the ground, as with no floor at all. The
     panel's line (`ground_source`) names the floor."""
-    pipeline = addon_part("operators.pipeline")
+    floor = addon_part("operators.floor")
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 1.0))
     ball = bpy.context.active_object
@@ -152,21 +152,21 @@ def test_the_floor_under_is_the_highest_mesh_below_the_objects_when_flat(addon):
     plane("Wall", 4.0, (0.0, 0.5, 2.0), rotation=(math.radians(90), 0.0, 0.0))
     plane("Through", 4.0, (0.0, 0.0, 0.7))
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert pipeline.floor_under(scene, depsgraph, [ball]) == slab
-    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.2)
-    assert "'Slab', the floor under" in pipeline.ground_source(scene, depsgraph, [ball])
+    assert floor.floor_under(scene, depsgraph, [ball]) == slab
+    assert floor.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.2)
+    assert "'Slab', the floor under" in floor.ground_source(scene, depsgraph, [ball])
     slab.hide_set(True)
-    assert pipeline.floor_under(scene, depsgraph, [ball]) == ground
+    assert floor.floor_under(scene, depsgraph, [ball]) == ground
     bpy.ops.mesh.primitive_cylinder_add(radius=0.1, depth=0.5, location=(0.0, 0.0, 0.25))
     column = bpy.context.active_object
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert pipeline.floor_under(scene, depsgraph, [ball]) is None
-    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
+    assert floor.floor_under(scene, depsgraph, [ball]) is None
+    assert floor.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
     column.hide_set(True)
     ground.hide_set(True)
-    assert pipeline.floor_under(scene, depsgraph, [ball]) is None
-    assert pipeline.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
-    assert "lowest point" in pipeline.ground_source(scene, depsgraph, [ball])
+    assert floor.floor_under(scene, depsgraph, [ball]) is None
+    assert floor.ground_height(scene, depsgraph, [ball]) == pytest.approx(0.5)
+    assert "lowest point" in floor.ground_source(scene, depsgraph, [ball])
 
 
 def sky_left(chosen):

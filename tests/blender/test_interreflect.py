@@ -557,14 +557,14 @@ def test_the_traced_pass_hides_the_ground_from_the_mirrors_and_puts_it_back(
     interreflect, monkeypatch, kind
 ):
     # The dome reads the ground from the plate; a shadow catcher, the chosen Ground object or
-    # the floor found under the mirrors (pipeline.ground_of) would hide it from them, so it is
+    # the floor found under the mirrors (floor.ground_of) would hide it from them, so it is
     # hidden from glossy rays for the render, and only for the render.
     scene, objects = ground_scene()
     bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.8))
     catcher = bpy.context.active_object
     catcher.is_shadow_catcher = kind == "shadow catcher"
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert interreflect.generate.pipeline.ground_of(scene, depsgraph, objects) == catcher
+    assert interreflect.traced_pass.floor.ground_of(scene, depsgraph, objects) == catcher
     seen = []
     read = interreflect._read_render
 

@@ -1,5 +1,5 @@
 """Set Up From Plate's shadow-catcher ground (operators/compositor.py `add_ground`): a plane
-under the objects that `pipeline.ground_height` finds, tagged as ours, removed by Undo; and
+under the objects that `floor.ground_height` finds, tagged as ours, removed by Undo; and
 through the operator, a Cycles render where the ground darkens the plate under the object."""
 
 import importlib
@@ -16,7 +16,7 @@ def modules(addon):
     name = addon.__name__ + ".operators."
     return (
         importlib.import_module(name + "compositor"),
-        importlib.import_module(name + "pipeline"),
+        importlib.import_module(name + "floor"),
     )
 
 
@@ -42,7 +42,7 @@ def scene_with_cube(tmp_path, z=1.5):
 
 
 def test_ground_under_the_objects_is_found_and_undone(modules, tmp_path):
-    comp, pipeline = modules
+    comp, floor = modules
     scene, cube, image = scene_with_cube(tmp_path)
     before = {o.name for o in bpy.data.objects}, {m.name for m in bpy.data.meshes}
     record = comp.setup_from_plate(scene, image, ground=True)
@@ -51,7 +51,7 @@ def test_ground_under_the_objects_is_found_and_undone(modules, tmp_path):
     assert ground.data.get("vr_created") == "ground"
     assert ground.location.z == pytest.approx(1.0)  # the cube's bottom
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert pipeline.ground_height(scene, depsgraph, [cube]) == pytest.approx(1.0)
+    assert floor.ground_height(scene, depsgraph, [cube]) == pytest.approx(1.0)
     assert comp.undo_setup_from_plate(scene)
     assert ({o.name for o in bpy.data.objects}, {m.name for m in bpy.data.meshes}) == before
 
