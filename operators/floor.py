@@ -37,11 +37,12 @@ def ground_of(scene, depsgraph, objects):
 
 
 def ground_source(scene, depsgraph, objects) -> str:
-    """One line for the panel: where `ground_height` takes the ground of ``objects`` from
-    when no Ground object is chosen."""
+    """One line for the panel: where `ground_height` takes the ground of ``objects`` from."""
     ground = ground_of(scene, depsgraph, objects)
     if ground is None:
         return "Ground: the objects' lowest point (choose the Ground if they float)"
+    if ground == scene.virtual_reflections.ground_object:
+        return f"Ground: '{ground.name}', chosen"
     if getattr(ground, "is_shadow_catcher", False):
         return f"Ground: the shadow catcher '{ground.name}'"
     return f"Ground: '{ground.name}', the floor under the objects"

@@ -232,10 +232,10 @@ def traced(scene, objects):
                     made.append(mirrors[slot.material.name])
                 slots.append((slot, slot.material))
                 slot.material = mirrors[slot.material.name]
-        chosen = floor.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
+        ground_object = floor.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
         ours = set(objects)
         for obj in scene.objects:
-            hides_ground = obj is chosen or getattr(obj, "is_shadow_catcher", False)
+            hides_ground = obj == ground_object or getattr(obj, "is_shadow_catcher", False)
             if obj not in ours and hides_ground and obj.visible_glossy:
                 flags.append((obj, "visible_glossy", True))
                 obj.visible_glossy = False

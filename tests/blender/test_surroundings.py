@@ -193,3 +193,6 @@ def test_the_panel_says_where_the_ground_is_taken_from(addon):
     assert any("'Floor', the floor under" in t for t in drawn), drawn
     scene.virtual_reflections.ground_object = floor
     assert not any(t.startswith("Ground") for t in _draw_method_panel(scene, [ball]).labels)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    floors = addon_part("operators.floor")
+    assert floors.ground_source(scene, depsgraph, [ball]) == "Ground: 'Floor', chosen"
