@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from .parallel import chunks
+from .params import SKY_GAINS
 from .products import matmul
 
 FILL_BINS = 181  # the fill profile: 1-degree bins of camera-frame elevation, -90 .. 90
@@ -233,14 +234,18 @@ def fill_profile(
 def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0) -> float:
     """The sky prior's level at gain 1 (`fill_profile`): `sky_level` of the pixels
     `level_pixels` (..., 3) whose elevation bins (`bins`, `fill_geometry` with `up`) lie
-    GROUND_BAND_DEG below the horizon, the band the gain was derived on; of them all when under
-    MIN_GROUND_SHARE of the plate lies there."""
+    GROUND_BAND_DEG below the horizon, the band the gain was derived on. When under
+    MIN_GROUND_SHARE of the plate lies there (a camera looking up: the plate is sky and what
+    stands in it), the gain's step from a ground to the sky above it has nothing to stand on:
+    the plate's own level stands for the sky's, divided by Auto's mirror gain, so that the
+    prior is that level times what the Surroundings and the roughness add over Auto's mirror
+    (docs/scenes3d.md, "Where it fails")."""
     pixels = level_pixels.reshape(-1, 3)
     below = HORIZON_BIN - bins % FILL_BINS  # degrees below the horizon (1-degree bins)
     band = (below >= GROUND_BAND_DEG[0]) & (below <= GROUND_BAND_DEG[1])
     if band.mean() >= MIN_GROUND_SHARE:
-        pixels = pixels[band]
-    return sky_level(pixels, energy)
+        return sky_level(pixels[band], energy)
+    return sky_level(pixels, energy) / SKY_GAINS["auto"]
 
 
 def sky_level(level_pixels: np.ndarray, energy: float = 0.0) -> float:
