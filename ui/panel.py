@@ -156,8 +156,8 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         col.prop(settings, "method")
         if settings.method == "GROUND":
             col.prop(settings, "ground_object")
-            objects = generate.candidates(context)
-            if settings.ground_object is None and objects:
+            objects = generate.candidates(context) if settings.ground_object is None else []
+            if objects:  # no Ground chosen: say where it is taken from
                 depsgraph = context.evaluated_depsgraph_get()
                 _wrapped(col, floor.ground_source(context.scene, depsgraph, objects), context)
             col.prop(settings, "surroundings")
