@@ -24,28 +24,46 @@ def red_at(x, y):
     return (np.floor(x / SQUARE) + np.floor(y / SQUARE)) % 2 == 0
 
 
-def make_shot(combine="REPLACE", method="GROUND", colour=None):
+def make_shot(combine="REPLACE", method="GROUND", colour=None, **frame):
     bpy.ops.mesh.primitive_uv_sphere_add(
         segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
     )
-    return make_shot_on(bpy.context.scene, bpy.context.active_object, combine, method, colour)
+    return make_shot_on(
+        bpy.context.scene, bpy.context.active_object, combine, method, colour, **frame
+    )
 
 
 def checker(x, y):
     return np.where(red_at(x, y)[..., None], RED, BLUE)
 
 
-def make_shot_on(scene, ball, combine="REPLACE", method="GROUND", colour=None):
+def make_shot_on(
+    scene,
+    ball,
+    combine="REPLACE",
+    method="GROUND",
+    colour=None,
+    size=(W, H),
+    camera=(),
+    roll_deg=0.0,
+    pixel_aspect=(1.0, 1.0),
+    plate_size=None,
+):
     """Camera, plate (the ground ``colour(x, y)``, by default the checker) and Generate for
-    ``ball`` (a sphere at CENTRE)."""
+    ``ball`` (a sphere at CENTRE). The frame: the render ``size``, the camera data's
+    ``camera`` settings (name, value pairs), its roll, the ``pixel_aspect`` and the plate's
+    size (by default the render's)."""
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(cam)
     scene.camera = cam
     cam.location = (0.3, -4.0, 1.6)
-    cam.rotation_euler = (math.radians(90 - 14), 0.0, 0.0)
+    cam.rotation_euler = (math.radians(90 - 14), 0.0, math.radians(roll_deg))
     cam.data.lens = 35.0
-    scene.render.resolution_x, scene.render.resolution_y = W, H
+    for name, value in camera:
+        setattr(cam.data, name, value)
+    scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
+    scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = pixel_aspect
     ball.name = "Ball"
     bpy.context.view_layer.objects.active = ball
     bpy.ops.object.shade_smooth()
@@ -53,7 +71,7 @@ def make_shot_on(scene, ball, combine="REPLACE", method="GROUND", colour=None):
     settings.method = method
     settings.combine = combine
     settings.resolution = "512"
-    settings.plate_image = ground_plate(scene, 0.0, colour or checker, SKY)
+    settings.plate_image = ground_plate(scene, 0.0, colour or checker, SKY, size=plate_size)
     report = addon_part("operators.generate").generate(
         scene, bpy.context.evaluated_depsgraph_get(), [ball]
     )
@@ -67,9 +85,10 @@ def render(scene, tmp_path):
 
 
 def traced(scene):
-    """Per pixel: (hit the ball, the ground point of the reflected ray from the surface, the
-    ground point of the same direction from the ball's centre, the ray goes down)."""
-    origin, d = camera_rays(scene, W, H)
+    """Per pixel of the render: (hit the ball, the ground point of the reflected ray from the
+    surface, the ground point of the same direction from the ball's centre, the ray goes
+    down)."""
+    origin, d = camera_rays(scene, scene.render.resolution_x, scene.render.resolution_y)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
     oc = origin - CENTRE
     b = d @ oc
@@ -92,24 +111,53 @@ def confident(points):
     return (np.minimum(frac, SQUARE - frac) > 0.03).all(-1)
 
 
-def test_each_point_of_a_mirror_reflects_its_own_ground_point(addon, tmp_path):
-    scene, _, _ = make_shot()
-    rgba = render(scene, tmp_path)
+def reflected_ground(rgba, scene):
+    """The ball's pixels well inside its silhouette (no edge pixels) that reflect the ground
+    nearby (on the plate: within 3 m of the ball) in an unambiguous colour, the colour they
+    must show (red) and the one they do, with the traced points (`traced`)."""
     hit, surface, centre, down = traced(scene)
-    # Well inside the ball's silhouette (no edge pixels), reflecting the ground nearby (on
-    # the plate: within 3 m of the ball), unambiguous colour.
     inside = rgba[..., 3] > 0.999
     near = np.linalg.norm(surface[..., :2], axis=-1) < 3.0
     chosen = hit & inside & down & near & confident(surface)
-    assert chosen.sum() > 150, chosen.sum()
-    red_seen = rgba[..., 0] > rgba[..., 2]
     expected = red_at(surface[..., 0], surface[..., 1])
+    return chosen, expected, rgba[..., 0] > rgba[..., 2], centre
+
+
+def test_each_point_of_a_mirror_reflects_its_own_ground_point(addon, tmp_path):
+    scene, _, _ = make_shot()
+    rgba = render(scene, tmp_path)
+    chosen, expected, red_seen, centre = reflected_ground(rgba, scene)
+    assert chosen.sum() > 150, chosen.sum()
     agree = (red_seen == expected)[chosen].mean()
     assert agree > 0.9, agree
     # Where the object's centre would see the other colour, the render follows the surface.
     parallax = chosen & confident(centre) & (red_at(centre[..., 0], centre[..., 1]) != expected)
     assert parallax.sum() > 30, parallax.sum()
     assert (red_seen == expected)[parallax].mean() > 0.8
+
+
+# Frames other than a centred landscape lens: each moves the ground point a pixel sees, so a
+# projection that ignored it would read the other colour of the checker on many pixels.
+FRAMES = {
+    "shifted lens": dict(camera=(("shift_x", 0.12), ("shift_y", -0.08))),
+    "portrait": dict(size=(136, 240)),
+    "portrait, horizontal fit": dict(size=(136, 240), camera=(("sensor_fit", "HORIZONTAL"),)),
+    "vertical fit": dict(camera=(("sensor_fit", "VERTICAL"), ("sensor_height", 18.0))),
+    "non-square pixels": dict(pixel_aspect=(1.0, 1.5)),
+    "rolled camera": dict(roll_deg=8.0),
+    "plate twice the render": dict(plate_size=(2 * W, 2 * H)),
+}
+
+
+@pytest.mark.parametrize("frame", list(FRAMES))
+def test_the_ground_is_placed_for_every_frame_of_the_camera(addon, tmp_path, frame):
+    scene, _, report = make_shot(**FRAMES[frame])
+    assert not report.warnings, report.warnings
+    rgba = render(scene, tmp_path)
+    chosen, expected, red_seen, _ = reflected_ground(rgba, scene)
+    assert chosen.sum() > 150, chosen.sum()
+    agree = (red_seen == expected)[chosen].mean()
+    assert agree > 0.85, agree
 
 
 def test_the_map_seen_from_the_centre_gets_the_contact_wrong(addon, tmp_path):
@@ -126,13 +174,8 @@ def test_the_map_seen_from_the_centre_gets_the_contact_wrong(addon, tmp_path):
     bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     ball.data.materials.append(mirror)
     rgba = render(scene, tmp_path)
-    hit, surface, centre, down = traced(scene)
-    inside = rgba[..., 3] > 0.999
-    near = np.linalg.norm(surface[..., :2], axis=-1) < 3.0
-    chosen = hit & inside & down & near & confident(surface) & confident(centre)
-    expected = red_at(surface[..., 0], surface[..., 1])
-    parallax = chosen & (red_at(centre[..., 0], centre[..., 1]) != expected)
-    red_seen = rgba[..., 0] > rgba[..., 2]
+    chosen, expected, red_seen, centre = reflected_ground(rgba, scene)
+    parallax = chosen & confident(centre) & (red_at(centre[..., 0], centre[..., 1]) != expected)
     assert parallax.sum() > 30, parallax.sum()
     assert (red_seen == expected)[parallax].mean() < 0.5
 
