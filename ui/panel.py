@@ -1,8 +1,8 @@
 """The N-panel tab "Reflections" in the 3D viewport.
 
-The main panel holds the workflow top to bottom (plate, look, Generate, live update); the
-sub-panels hold what an artist opens less often: the active object's previews, the method's
-parameters, shading, and maps & animation.
+The main panel holds the workflow top to bottom (plate, look, surroundings, Generate, live
+update); the sub-panels hold what an artist opens less often: the active object's previews,
+the method's parameters, shading, and maps & animation.
 """
 
 import textwrap
@@ -30,6 +30,27 @@ def _wrapped(layout, text, context, icon="NONE"):
     chars = max(20, int(context.region.width / (7 * context.preferences.system.ui_scale)))
     for i, line in enumerate(textwrap.wrap(text, chars - 4)):
         layout.label(text=line, icon=icon if i == 0 else "BLANK1")
+
+
+def _draw_surroundings(col, settings, context):
+    """What stands around the shot (Camera View + Ground): in the main panel, as what sets the
+    unseen sky's brightness matters more than any other setting (docs/scenes3d.md, "Surroundings
+    named by the artist"); the World HDRI's source, or a hint when the camera sees no sky."""
+    col.prop(settings, "surroundings")
+    if settings.surroundings == "WORLD":
+        try:
+            world = world_probe.user_world(context.scene)
+            node = world_probe.environment_node(world)
+            _wrapped(col, f"Reads '{node.image.name}' from world '{world.name}'", context)
+        except ValueError as exc:
+            _wrapped(col, f"{exc}: Auto is used", context, icon="ERROR")
+    if settings.surroundings == "AUTO" and pipeline.camera_sky(context.scene) == 0:
+        _wrapped(
+            col,
+            "The camera sees no sky: name the Surroundings if you know them",
+            context,
+            icon="INFO",
+        )
 
 
 class _Tab:
@@ -74,6 +95,8 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Look")
         presets.draw_buttons(col, settings)
+        if settings.method == "GROUND":
+            _draw_surroundings(layout.column(align=True), settings, context)
 
         col = layout.column(align=True)
         col.scale_y = 1.4
@@ -160,21 +183,6 @@ class VR_PT_method(_Tab, bpy.types.Panel):
             if objects:  # no Ground chosen: say where it is taken from
                 depsgraph = context.evaluated_depsgraph_get()
                 _wrapped(col, floor.ground_source(context.scene, depsgraph, objects), context)
-            col.prop(settings, "surroundings")
-            if settings.surroundings == "WORLD":
-                try:
-                    world = world_probe.user_world(context.scene)
-                    node = world_probe.environment_node(world)
-                    _wrapped(col, f"Reads '{node.image.name}' from world '{world.name}'", context)
-                except ValueError as exc:
-                    _wrapped(col, f"{exc}: Auto is used", context, icon="ERROR")
-            if settings.surroundings == "AUTO" and pipeline.camera_sky(context.scene) == 0:
-                _wrapped(
-                    col,
-                    "The camera sees no sky: name the Surroundings if you know them",
-                    context,
-                    icon="INFO",
-                )
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

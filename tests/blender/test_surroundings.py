@@ -128,7 +128,8 @@ def test_the_batch_option_sets_the_surroundings(addon):
 
 
 class _Layout:
-    """Records what a panel draws: the properties and the labels."""
+    """Records what a panel draws: the properties and the labels (every other layout call
+    draws nothing here)."""
 
     def __init__(self):
         self.props, self.labels = [], []
@@ -136,14 +137,30 @@ class _Layout:
     def column(self, **_kw):
         return self
 
+    row = box = column
+
     def prop(self, _data, name, **_kw):
         self.props.append(name)
 
     def label(self, text="", **_kw):
         self.labels.append(text)
 
+    def operator(self, *_args, **_kw):
+        return type("OperatorProperties", (), {})()
 
-def _draw_method_panel(scene, selected=()):
+    def __getattr__(self, _name):  # template_ID, progress, separator...
+        return lambda *_args, **_kw: None
+
+
+def draw_method_panel(scene, selected=()):
+    return draw_panel("VR_PT_method", scene, selected)
+
+
+def draw_main_panel(scene):
+    return draw_panel("VR_PT_main", scene)
+
+
+def draw_panel(name, scene, selected=()):
     panel = addon_part("ui.panel")
     layout = _Layout()
     context = type(
@@ -158,41 +175,44 @@ def _draw_method_panel(scene, selected=()):
             "evaluated_depsgraph_get": staticmethod(bpy.context.evaluated_depsgraph_get),
         },
     )()
-    panel.VR_PT_method.draw(type("Panel", (), {"layout": layout})(), context)
+    getattr(panel, name).draw(type("Panel", (), {"layout": layout})(), context)
     return layout
 
 
 def test_the_panel_asks_for_the_surroundings_when_the_camera_sees_no_sky(addon):
+    """The Surroundings sit in the main panel, under the Look (the setting that matters most
+    for the unseen sky), not in the Method sub-panel: one home."""
     pipeline = addon_part("operators.pipeline")
     scene, _ = make_shot()
     assert pipeline.camera_sky(scene) == 0.0  # 35 degrees down, 22 high: ground only
-    drawn = _draw_method_panel(scene)
+    drawn = draw_main_panel(scene)
     assert "surroundings" in drawn.props
+    assert "surroundings" not in draw_method_panel(scene).props
     assert any("sees no sky" in text for text in drawn.labels), drawn.labels
     scene.virtual_reflections.surroundings = "OPEN"  # named: nothing to ask
-    assert not any("sky" in text for text in _draw_method_panel(scene).labels)
+    assert not any("sky" in text for text in draw_main_panel(scene).labels)
     scene.virtual_reflections.surroundings = "AUTO"
     scene.camera.rotation_euler = (math.radians(90), 0.0, 0.0)  # level: half the frame is sky
     bpy.context.view_layer.update()
     assert pipeline.camera_sky(scene) == pytest.approx(0.5, abs=0.02)
-    assert not any("sky" in text for text in _draw_method_panel(scene).labels)
+    assert not any("sky" in text for text in draw_main_panel(scene).labels)
     scene.virtual_reflections.method = "CAMERA"  # no ground method: no Surroundings
-    assert "surroundings" not in _draw_method_panel(scene).props
+    assert "surroundings" not in draw_main_panel(scene).props
 
 
 def test_the_panel_says_where_the_ground_is_taken_from(addon):
     """No Ground chosen: the panel names the floor under the selected objects, or says the
     objects' lowest point is taken; with a Ground chosen, the field says it all."""
     scene, ball = make_shot()
-    lines = [t for t in _draw_method_panel(scene, [ball]).labels if t.startswith("Ground")]
+    lines = [t for t in draw_method_panel(scene, [ball]).labels if t.startswith("Ground")]
     assert len(lines) == 1 and "lowest point" in lines[0], lines
     bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.2))
     floor = bpy.context.active_object
     floor.name = "Floor"
-    drawn = _draw_method_panel(scene, [ball]).labels
+    drawn = draw_method_panel(scene, [ball]).labels
     assert any("'Floor', the floor under" in t for t in drawn), drawn
     scene.virtual_reflections.ground_object = floor
-    assert not any(t.startswith("Ground") for t in _draw_method_panel(scene, [ball]).labels)
+    assert not any(t.startswith("Ground") for t in draw_method_panel(scene, [ball]).labels)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     floors = addon_part("operators.floor")
     assert floors.ground_source(scene, depsgraph, [ball]) == "Ground: 'Floor', chosen"

@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 import pytest
 from shots import addon_part
-from test_surroundings import GROUND, make_shot
+from test_surroundings import GROUND, draw_main_panel, make_shot
 
 ZENITH = (0.2, 0.4, 1.0)
 RED = (3.0, 0.0, 0.0)
@@ -244,15 +244,13 @@ def test_the_probe_is_the_world_cycles_renders(addon):
 
 
 def test_the_panel_names_the_hdri_it_reads(addon):
-    from test_surroundings import _draw_method_panel
-
     scene, _ = make_shot()
     scene.virtual_reflections.surroundings = "WORLD"
     scene.world = bpy.data.worlds.new("Plain")
-    labels = " ".join(_draw_method_panel(scene).labels)
+    labels = " ".join(draw_main_panel(scene).labels)
     assert "world 'Plain' has no Environment Texture" in labels and "Auto is used" in labels
     scene.world = world_with(hdri("Set Panorama"))
-    labels = " ".join(_draw_method_panel(scene).labels)
+    labels = " ".join(draw_main_panel(scene).labels)
     assert "Reads 'Set Panorama' from world 'Set HDRI'" in labels, labels
 
 
