@@ -3,13 +3,28 @@
 METHODS maps a name to `fn(plate_linear (H, W, 3), bbox, hfov_deg, width) -> (width/2, width, 3)`
 float32 lat-long in the camera frame (docs/conventions.md). The accuracy study
 (`python -m study evaluate`) charts them against each other; "camera" (the add-on's
-Camera View, with Params' defaults) is the product's default.
+Camera View, with Params' defaults) is its default, the distant model; "camera + horizon" is
+the map of the add-on's default, Camera View + Ground, whose ground (read per shading point
+in the material) this distant truth has at infinity.
 """
 
 from __future__ import annotations
 
+import math
+
 from virtual_reflections.envmap import environment_map
-from virtual_reflections.params import Params
+from virtual_reflections.params import SKY_GAINS, Params
+
+# The accuracy study's camera pitch (degrees, negative: looking down; its Config.pitch): the
+# world's horizon of every view, which "camera + horizon" is given as the add-on gives it.
+PITCH_DEG = -8.0
+
+
+def world_up(pitch_deg: float) -> tuple:
+    """The world's up direction in the engine's camera frame (docs/conventions.md: +Z the view
+    direction, +Y up, +X the plate's left) of a camera pitched by ``pitch_deg``, no roll."""
+    pitch = math.radians(pitch_deg)
+    return (0.0, math.cos(pitch), math.sin(pitch))
 
 
 def _engine(**kwargs):
@@ -25,6 +40,12 @@ METHODS = {
     # (the plate's left half to the left, its right half to the right, both behind), as bright
     # as the geometric mean of the log-average and the mean, its shared tint half kept
     "camera": _engine(method="camera"),
+    # the add-on's default's map (Camera View + Ground in the Replace look, the ground itself
+    # read per shading point in the material, here at infinity as the truth's): the camera view
+    # with the world's horizon, the sky prior alone above it (Auto's gain)
+    "camera + horizon": _engine(
+        method="camera", up=world_up(PITCH_DEG), sky_gain=SKY_GAINS["auto"]
+    ),
     # the previous default: the edges extended into every unseen direction, no fill
     "camera, edges only": _engine(method="camera", extend_fade=None),
     # the previous fill: by elevation only (left and right mixed), a log-average (darker than

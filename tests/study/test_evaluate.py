@@ -283,6 +283,15 @@ def test_the_claims_of_the_docs_hold_on_the_quick_subset(quick):
     assert not failed, failed
 
 
+def test_the_study_refuses_a_pitch_its_horizon_method_does_not_know():
+    """The horizon method ("engine camera + horizon") knows the study's pitch only: another
+    pitch with the study's own methods is refused before any work, in one line."""
+    from dataclasses import replace
+
+    with pytest.raises(ValueError, match="horizon of a -8 degree pitch only, not -20"):
+        study.run_study(replace(study.QUICK, pitch=-20.0), jobs=1)
+
+
 def test_claims_are_in_the_docs():
     import pathlib
 
