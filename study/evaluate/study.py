@@ -93,8 +93,9 @@ class Config:
 
     hdris: tuple = HDRIS
     headings: tuple = (0.0, 135.0)  # degrees, added to each HDRI's own offset (HEADING_OFFSET)
-    pitch: float = PITCH_DEG  # looking slightly down, as a camera over the ground an object stands
-    # on (-8; "engine camera + horizon" is given this horizon: `run_study` refuses another)
+    # -8 degrees: looking slightly down, as a camera over the ground an object stands on; the
+    # horizon "engine camera + horizon" is given (`run_study` refuses another pitch)
+    pitch: float = PITCH_DEG
     hfovs: tuple = (40.0, 60.0, 90.0)
     placements: tuple = PLACEMENT_NAMES
     plate_size: tuple = (640, 360)
@@ -447,7 +448,7 @@ def run_study(
     own_methods = methods is None
     if own_methods:
         methods, default = all_methods()
-        if config.pitch != PITCH_DEG:  # the horizon "camera + horizon" is given is this pitch's
+        if config.pitch != PITCH_DEG:  # "camera + horizon" is given this pitch's horizon
             raise ValueError(
                 f"the study's methods know the horizon of a {PITCH_DEG:g} degree pitch only, "
                 f"not {config.pitch:g}: pass methods without 'engine camera + horizon'"
