@@ -4,7 +4,7 @@
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
     python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--split]
-        [--out DIR]
+        [--oracle shadow|proxies] [--out DIR]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -121,6 +121,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --mirror-only: also where the default's error lies: on the pixels the sky "
         "prior sets (found by a second render with the prior black) or on the rest",
     )
+    p.add_argument(
+        "--oracle",
+        choices=("shadow", "proxies"),
+        help="with --mirror-only: also the default given what no plate holds (study/scenes3d/"
+        "oracles.py): shadow, the subject's own shadow in the plate; proxies, the ray-traced "
+        "pass without and with the scene's true boxes for the mirror's rays",
+    )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
@@ -150,6 +157,7 @@ def main(argv=None) -> int:
                     sky_gain=args.sky_gain,
                     split=args.split,
                     surroundings=args.surroundings,
+                    oracle=args.oracle,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc

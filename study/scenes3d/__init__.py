@@ -48,6 +48,7 @@ SURROUNDINGS = (
     "world",
     "artist",
 )  # --surroundings (run.surroundings_of)
+ORACLES = ("shadow", "proxies")  # --oracle (oracles.py)
 
 
 @dataclass(frozen=True)
@@ -111,14 +112,16 @@ def default_cache() -> pathlib.Path:
     return pathlib.Path(tempfile.gettempdir()) / "vr_scenes3d_mirror_cache"
 
 
-def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False, surroundings=None):
+def run_mirror(
+    config: Config, cache=None, log=None, sky_gain=None, split=False, surroundings=None, oracle=None
+):
     """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
     (as `run_study`'s, with the mirror only, the default method and the plate mean).
     ``sky_gain``: the default method's maps built with that Params.sky_gain (None: as is);
     ``split``: each scene's error split (`mirror.error_split`: one more render a scene);
     ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed, world:
     the scene's dome read from its world), or "artist": each scene's by the kind of its HDRI
-    (`run.surroundings_of`)."""
+    (`run.surroundings_of`); ``oracle``: each scene's rows of that oracle (`oracles`)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -142,6 +145,7 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False,
             sky_gain,
             split,
             surroundings,
+            oracle,
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -152,8 +156,10 @@ def run_mirror(config: Config, cache=None, log=None, sky_gain=None, split=False,
         + " --mirror-only"
         + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}")
         + ("" if surroundings is None else f" --surroundings {surroundings}")
-        + (" --split" if split else ""),
+        + (" --split" if split else "")
+        + ("" if oracle is None else f" --oracle {oracle}"),
         "sky_gain": sky_gain,
+        "oracle": oracle,
         "surroundings": surroundings,
         "quick": config.quick,
         "mirror_only": True,
@@ -258,6 +264,7 @@ def run_command(
     sky_gain=None,
     split=False,
     surroundings=None,
+    oracle=None,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
@@ -267,13 +274,20 @@ def run_command(
     ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``, the sky
     prior's gain ``sky_gain`` or the panel's ``surroundings`` if given): prints its table,
     and with ``out`` writes only OUT/scenes3d_mirror(_quick).json; with ``split`` also where
-    the default's error lies (`mirror.split_table`)."""
+    the default's error lies (`mirror.split_table`); with ``oracle`` also that oracle's rows
+    (`oracles`, `mirror.oracle_table`)."""
     if not mirror_only and (
-        cache is not None or sky_gain is not None or split or surroundings is not None
+        cache is not None
+        or sky_gain is not None
+        or split
+        or surroundings is not None
+        or oracle is not None
     ):
         raise ScenesInputError(
-            "--cache, --sky-gain, --surroundings and --split go with --mirror-only"
+            "--cache, --sky-gain, --surroundings, --split and --oracle go with --mirror-only"
         )
+    if oracle not in (None, *ORACLES):
+        raise ScenesInputError(f"--oracle: one of {', '.join(ORACLES)}, not {oracle!r}")
     if sky_gain is not None and surroundings is not None:
         raise ScenesInputError("--sky-gain or --surroundings, not both")
     if surroundings not in (None, *SURROUNDINGS):
@@ -306,6 +320,7 @@ def run_command(
             sky_gain=sky_gain,
             split=split,
             surroundings=surroundings,
+            oracle=oracle,
         )
         from . import mirror  # bpy is importable: run_mirror said so
 
@@ -313,6 +328,9 @@ def run_command(
         if split:
             print()
             print(mirror.split_table(data))
+        if oracle is not None:
+            print()
+            print(mirror.oracle_table(data, oracle))
         print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
         if out:
             target = pathlib.Path(out)

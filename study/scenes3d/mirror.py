@@ -26,7 +26,7 @@ import numpy as np
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
 
-from . import build, run
+from . import build, oracles, run
 from .scenes import Scene3D
 
 MIRROR = "mirror"
@@ -56,11 +56,13 @@ def run_scene(
     log,
     split=False,
     surroundings=None,
+    oracle=None,
 ):
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
     method and the plate mean. ``split``: also the default with a black sky prior (one more
     Generate and render), and the record's "split" (`error_split`). ``surroundings``: the
-    panel's Surroundings for it (`run.surroundings_of`)."""
+    panel's Surroundings for it (`run.surroundings_of`). ``oracle``: also the rows of that
+    oracle (`oracles.ORACLES`), scored as the default's."""
     started = time.perf_counter()
     run.new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -126,10 +128,18 @@ def run_scene(
         renders += 1
         addon.generate.remove_all()
 
+    rows = {}
+    if oracle is not None:
+        rendered, count = oracles.render_rows(
+            oracle, scene, subject, others, addon, folder, work, spec.name, border
+        )
+        rows = dict(zip(oracles.labels(label, oracle), rendered))
+        renders += count
+
     mask = mean[..., 3] > 0.5
     results, crops, composites = {}, {}, {}
     y0, y1, x0, x1 = crop
-    for name, rgba in ((label, method), (run.MEAN, mean)):
+    for name, rgba in ((label, method), *rows.items(), (run.MEAN, mean)):
         composite = composites[name] = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
         results[name] = run.score(composite, truth, mask, crop)
         crops[name] = run.to_display(composite[y0:y1, x0:x1])
@@ -201,11 +211,14 @@ def sky_gain(addon: run.Addon, gain):
         pipeline.map_params = original
 
 
-def run_scenes(specs, cache, work, width, samples, log, gain=None, split=False, surroundings=None):
+def run_scenes(
+    specs, cache, work, width, samples, log, gain=None, split=False, surroundings=None, oracle=None
+):
     """Every scene's mirror in turn; returns (records, crops, [the default method's label]).
     ``gain``: the sky prior's gain for this run (None: the add-on's default); ``split``: each
     record's error split (`error_split`); ``surroundings``: the panel's Surroundings set in
-    each scene (`run.surroundings_of`; a ``gain`` overrides it)."""
+    each scene (`run.surroundings_of`; a ``gain`` overrides it); ``oracle``: each scene's rows
+    of that oracle (`oracles`)."""
     addon = run.Addon()
     records, crops = [], {}
     try:
@@ -222,6 +235,7 @@ def run_scenes(specs, cache, work, width, samples, log, gain=None, split=False, 
                     log,
                     split,
                     surroundings,
+                    oracle,
                 )
                 records.append(record)
                 crops[spec.name] = scene_crops
@@ -304,4 +318,29 @@ def split_table(data) -> str:
         d = -10 * np.log10(sky * p[:, 0] + rest * p[:, 1]) - base
         ahead = int((d > 0).sum())
         rows.append(f"{text}: {d.mean():+.2f} dB over the plate mean, ahead in {ahead}/{len(d)}")
+    return "\n".join(rows)
+
+
+def oracle_table(data, oracle: str) -> str:
+    """Per scene and on average: the mirror PSNR of the default, of each row of ``oracle``
+    (`oracles.labels`) and of the plate mean; then each one's mean difference over the plate
+    mean and the scenes it is ahead in."""
+    label = data["addon_methods"][0]
+    names = (label, *oracles.labels(label, oracle))
+    rows = [
+        "| scene | " + " | ".join(names) + " | plate mean |",
+        "|---|" + "---|" * (len(names) + 1),
+    ]
+    over = {name: [] for name in names}
+    for record in data["scenes"]:
+        r = record["results"][MIRROR]
+        for name in names:
+            over[name].append(r[name]["psnr"] - r[run.MEAN]["psnr"])
+        cells = " | ".join(f"{r[name]['psnr']:.2f}" for name in names)
+        rows.append(f"| {record['scene']['name']} | {cells} | {r[run.MEAN]['psnr']:.2f} |")
+    rows.append("")
+    n = len(data["scenes"])
+    for name in names:
+        d = np.array(over[name])
+        rows.append(f"{name}: {d.mean():+.2f} dB over the plate mean, ahead in {(d > 0).sum()}/{n}")
     return "\n".join(rows)

@@ -14,17 +14,23 @@ import sys
 import pytest
 
 from study.scenes3d import QUICK
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 LABEL = "Camera View + Ground"
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("mirror_cache")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, cache):
     pytest.importorskip("bpy", reason="the 3D study renders with the bpy module")
     from study.scenes3d import run_command
 
-    cache = tmp_path_factory.mktemp("mirror_cache")
     out = tmp_path_factory.mktemp("mirror_out")
     first, _ = run_command(quick=True, mirror_only=True, cache=cache, out=out, log=lambda _: None)
     again, _ = run_command(quick=True, mirror_only=True, cache=cache, log=lambda _: None)
@@ -128,10 +134,65 @@ def test_the_world_hdri_beats_the_guessed_sky(runs):
         assert rb[LABEL]["ssim"] > ra[LABEL]["ssim"]
 
 
+@pytest.fixture(scope="module")
+def oracle_runs(runs, cache):
+    """Both oracles on the quick subset, from the cache `runs` filled; the shadow oracle twice
+    (the second finds its shadowed plates in the cache)."""
+    from study.scenes3d import run_command
+
+    def oracle(name):
+        data, _ = run_command(
+            quick=True, mirror_only=True, cache=cache, oracle=name, log=lambda _: None
+        )
+        return data
+
+    return oracle("shadow"), oracle("shadow"), oracle("proxies")
+
+
+def test_the_shadow_oracle_puts_the_subjects_shadow_in_the_plate(runs, cache, oracle_runs):
+    """`--oracle shadow`: the plate rendered again with the subject hidden from the camera
+    only darkens the ground around it (its shadow), is cached, and Generate on it gives a row
+    of its own (the plate mean untouched)."""
+    from study.scenes3d import oracles
+
+    first = runs[0]
+    shadow, again, _ = oracle_runs
+    row = f"{LABEL} (shadow in the plate)"
+    assert [r["renders"] for r in shadow["scenes"]] == [3] * len(QUICK.specs())
+    assert [r["renders"] for r in again["scenes"]] == [2] * len(QUICK.specs())
+    for a, b in zip(first["scenes"], shadow["scenes"]):
+        ra, rb = a["results"]["mirror"], b["results"]["mirror"]
+        assert ra["Plate mean"] == rb["Plate mean"]
+        assert math.isfinite(rb[row]["psnr"]) and rb[row] != rb[LABEL]
+        folder = next(cache.glob(f"{a['scene']['name']}-*"))
+        plate = oracles.shadow_plate(folder).sum(-1)
+        before = srgb_to_linear(read_rgba(str(folder / "plate.png"))[..., :3]).sum(-1)
+        darker, brighter = (before - plate > 0.03).sum(), (plate - before > 0.03).sum()
+        assert darker > 30 and darker > 3 * brighter, (darker, brighter)
+
+
+def test_the_proxy_oracle_traces_the_mirror_without_and_with_the_boxes(runs, oracle_runs):
+    """`--oracle proxies`: the ray-traced pass shows the Suzanne in itself (s103 changes over
+    one pass), and the scene's boxes put back for the mirror's rays change what it shows."""
+    first = runs[0]
+    proxies = oracle_runs[2]
+    traced, boxes = f"{LABEL} (traced)", f"{LABEL} (traced, true proxies)"
+    assert [r["renders"] for r in proxies["scenes"]] == [3] * len(QUICK.specs())
+    for a, b in zip(first["scenes"], proxies["scenes"]):
+        ra, rb = a["results"]["mirror"], b["results"]["mirror"]
+        assert ra["Plate mean"] == rb["Plate mean"]
+        assert all(math.isfinite(rb[name]["psnr"]) for name in (traced, boxes))
+        assert rb[boxes] != rb[traced], a["scene"]["name"]
+        if "suzanne" in a["scene"]["name"]:
+            assert abs(rb[traced]["psnr"] - rb[LABEL]["psnr"]) > 0.02, (rb[traced], rb[LABEL])
+
+
 def test_cache_and_sky_gain_need_mirror_only_in_one_line():
     for extra in (
         ["--cache", "/tmp/x"],
         ["--split"],
+        ["--oracle", "shadow"],
+        ["--mirror-only", "--oracle", "sun"],
         ["--surroundings", "open"],
         ["--mirror-only", "--sky-gain", "-1"],
         ["--mirror-only", "--sky-gain", "1", "--surroundings", "open"],
