@@ -67,60 +67,71 @@ def render_rows(oracle, scene, subject, others, addon, folder: pathlib.Path, wor
     how many renders it took (the shadowed plate is rendered once, then cached). The scene is
     as `mirror.run_scene` leaves it after the default's render: the other objects hidden, the
     film transparent, the plate in the panel, no maps."""
-    generate = addon.generate
-    depsgraph = bpy.context.evaluated_depsgraph_get
     if oracle == "shadow":
-        settings = scene.virtual_reflections
-        plate_image = settings.plate_image
-        exr, png = (folder / f for f in SHADOW_PLATE)
-        renders = 1
-        if not (exr.is_file() and png.is_file()):
-            renders += 1
-            for obj in others:
-                obj.hide_render = False
-            scene.render.film_transparent = False
-            subject.visible_camera = False
-            try:
-                shadowed = run.render(scene, exr)[..., :3]
-            finally:
-                subject.visible_camera = True
-                scene.render.film_transparent = True
-                for obj in others:
-                    obj.hide_render = True
-            run.write_png(png, shadowed)
-        settings.plate_image = bpy.data.images.load(str(png))
+        return _shadow_rows(
+            scene, subject, others, addon, folder, work / f"{name} shadow.exr", border
+        )
+    return _proxy_rows(scene, subject, others[1:], addon, work, name, border)  # others[0]: ground
+
+
+def _shadow_rows(scene, subject, others, addon, folder, path, border):
+    settings = scene.virtual_reflections
+    plate_image = settings.plate_image
+    exr, png = (folder / f for f in SHADOW_PLATE)
+    renders = 1
+    if not (exr.is_file() and png.is_file()):
+        renders += 1
+        for obj in others:
+            obj.hide_render = False
+        scene.render.film_transparent = False
+        subject.visible_camera = False
         try:
-            with no_contact_shadow(addon):
-                report = generate.generate(scene, depsgraph(), [subject])
-            if not report.done:
-                raise RuntimeError(f"{name}: Generate on the shadowed plate made nothing")
-            rgba = run.render(scene, work / f"{name} shadow oracle.exr", border)
+            shadowed = run.render(scene, exr)[..., :3]
         finally:
-            generate.remove_all()
-            settings.plate_image = plate_image
-        return [rgba], renders
+            subject.visible_camera = True
+            scene.render.film_transparent = True
+            for obj in others:
+                obj.hide_render = True
+        run.write_png(png, shadowed)
+    settings.plate_image = bpy.data.images.load(str(png))
+    try:
+        with no_contact_shadow(addon):
+            report = addon.generate.generate(
+                scene, bpy.context.evaluated_depsgraph_get(), [subject]
+            )
+        if not report.done:
+            raise RuntimeError(f"{path.stem}: Generate on the shadowed plate made nothing")
+        rgba = run.render(scene, path, border)
+    finally:
+        addon.generate.remove_all()
+        settings.plate_image = plate_image
+    return [rgba], renders
+
+
+def _proxy_rows(scene, subject, boxes, addon, work, name, border):
     traced_pass = importlib.import_module(f"{addon.module.__name__}.operators.traced_pass")
-    report = generate.generate(scene, depsgraph(), [subject])
+    report = addon.generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [subject])
     if not report.done:
         raise RuntimeError(f"{name}: Generate made nothing")
-    boxes = others[1:]  # build.build: the ground plane first, then the boxes
     try:
         with traced_pass.traced(scene, [subject]):
             rows = [run.render(scene, work / f"{name} traced.exr", border)]
-            for obj in boxes:
-                obj.hide_render = False
-                for flag in GLOSSY_ONLY:
-                    setattr(obj, flag, False)
+            _show_to_mirrors(boxes, True)
             try:
                 rows.append(run.render(scene, work / f"{name} traced proxies.exr", border))
             finally:
-                for obj in boxes:
-                    obj.hide_render = True
-                    for flag in GLOSSY_ONLY:
-                        setattr(obj, flag, True)
+                _show_to_mirrors(boxes, False)
     finally:
-        generate.remove_all()
+        addon.generate.remove_all()
     return rows, len(rows)
+
+
+def _show_to_mirrors(boxes, shown: bool) -> None:
+    """Put ``boxes`` back for the mirror's rays alone (``shown``), or hide them again."""
+    for obj in boxes:
+        obj.hide_render = not shown
+        for flag in GLOSSY_ONLY:
+            setattr(obj, flag, not shown)
 
 
 def shadow_plate(folder: pathlib.Path) -> np.ndarray:
