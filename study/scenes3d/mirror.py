@@ -62,7 +62,7 @@ def run_scene(
     method and the plate mean. ``split``: also the default with a black sky prior (one more
     Generate and render), and the record's "split" (`error_split`). ``surroundings``: the
     panel's Surroundings for it (`run.surroundings_of`). ``oracle``: also the rows of that
-    oracle (`oracles.ORACLES`), scored as the default's."""
+    oracle (the package's ORACLES, `oracles`), scored as the default's."""
     started = time.perf_counter()
     run.new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
