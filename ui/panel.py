@@ -35,7 +35,8 @@ def _wrapped(layout, text, context, icon="NONE"):
 def _draw_surroundings(col, settings, context):
     """What stands around the shot (Camera View + Ground): in the main panel, as what sets the
     unseen sky's brightness matters more than any other setting (docs/scenes3d.md, "Surroundings
-    named by the artist"); the World HDRI's source, or a hint when the camera sees no sky."""
+    named by the artist"); the World HDRI's source; under Auto, a hint when the world holds an
+    HDRI (World HDRI would read it) or else when the camera sees no sky."""
     col.prop(settings, "surroundings")
     if settings.surroundings == "WORLD":
         try:
@@ -44,13 +45,34 @@ def _draw_surroundings(col, settings, context):
             _wrapped(col, f"Reads '{node.image.name}' from world '{world.name}'", context)
         except ValueError as exc:
             _wrapped(col, f"{exc}: Auto is used", context, icon="ERROR")
-    if settings.surroundings == "AUTO" and pipeline.camera_sky(context.scene) == 0:
+    if settings.surroundings != "AUTO":
+        return
+    hdri = _world_hdri(context.scene)
+    if hdri is not None:  # the on-set HDRI may be there already: say how to use it
+        _wrapped(
+            col,
+            f"{hdri}: World HDRI reads it for the sky the plate does not show",
+            context,
+            icon="INFO",
+        )
+    elif pipeline.camera_sky(context.scene) == 0:
         _wrapped(
             col,
             "The camera sees no sky: name the Surroundings if you know them",
             context,
             icon="INFO",
         )
+
+
+def _world_hdri(scene) -> str | None:
+    """The hint's start, World 'Y' holds 'X', when the artist's world has the one HDRI that
+    World HDRI would read; None otherwise."""
+    world = world_probe.user_world(scene)
+    try:
+        node = world_probe.environment_node(world)
+    except ValueError:
+        return None
+    return f"World '{world.name}' holds '{node.image.name}'"
 
 
 class _Tab:

@@ -309,3 +309,26 @@ def test_every_frame_follows_an_animated_world(addon):
         pixels = addon_part("operators.images").read_pixels(image)[..., :3]
         red[frame] = pixels[toward(directions(scene, pixels), 1, -1)][:, 0].mean()
     assert red[1] > 0.5 * RED[0] * STRENGTH and red[2] < 0.2, red
+
+
+def test_under_auto_the_panel_points_to_the_worlds_hdri(addon):
+    """Auto does not read the world (it may light the shot without being the set), but when
+    the artist's world holds an HDRI the panel says World HDRI would read it, in place of the
+    no-sky hint; a world without one, or with its texture muted, leaves the no-sky hint."""
+    scene, _ = make_shot()  # the camera sees no sky
+    assert scene.virtual_reflections.surroundings == "AUTO"
+    scene.world = bpy.data.worlds.new("Plain")
+    labels = " ".join(draw_main_panel(scene).labels)
+    assert "sees no sky" in labels and "holds" not in labels, labels
+    world = world_with(hdri("Set Panorama"))
+    scene.world = world
+    labels = " ".join(draw_main_panel(scene).labels)
+    assert "World 'Set HDRI' holds 'Set Panorama': World HDRI reads it" in labels, labels
+    assert "sees no sky" not in labels
+    env = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment")
+    env.mute = True
+    labels = " ".join(draw_main_panel(scene).labels)
+    assert "holds" not in labels and "sees no sky" in labels, labels
+    env.mute = False
+    scene.virtual_reflections.surroundings = "OPEN"  # named: no hint
+    assert "holds" not in " ".join(draw_main_panel(scene).labels)
