@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--cases",
-        choices=("default", "failures", "inter", "motion", "heldout"),
+        choices=("default", "failures", "inter", "motion", "heldout", "more"),
         default="default",
         help="failures: the failure cases instead (floating, looking up, wall, border, large, "
         "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md; "
@@ -85,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
         "motion: a sliding sphere and a moving camera, the change per frame pair: "
         "DIR/scenes3d_motion.json and the 'In motion' table; "
         "heldout: 8 scenes under the two HDRIs nothing was tuned on: "
-        "DIR/scenes3d_heldout.json and the 'Held-out HDRIs' table",
+        "DIR/scenes3d_heldout.json and the 'Held-out HDRIs' table; "
+        "more (with --mirror-only): 32 scenes more drawn as the default 16 are",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     p.add_argument(

@@ -13,7 +13,8 @@ method and the plate mean, the plate and truth renders cached (`mirror`: a fast 
 `--cases failures` runs the failure cases instead (issue 11, item 5),
 `--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
 issue 11, item 4), `--cases motion` the sequences of a moving subject and camera (`motion`,
-`motion_run`, `motion_report`). Research
+`motion_run`, `motion_report`), `--cases heldout` the scenes under the held-out HDRIs,
+`--cases more --mirror-only` 32 scenes more drawn as the default 16 are. Research
 only: bpy is imported when a run starts (once per process); the product never imports this.
 """
 
@@ -40,7 +41,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures", "inter", "motion", "heldout")
+CASES = ("default", "failures", "inter", "motion", "heldout", "more")
 SURROUNDINGS = (
     "auto",
     "open",
@@ -66,6 +67,8 @@ class Config:
             return scenes.inter_set(self.quick)
         if self.cases == "heldout":
             return scenes.held_out_set(self.quick)
+        if self.cases == "more":
+            return scenes.more_set(self.quick)
         return scenes.scene_set(self.quick)
 
     @property
@@ -94,6 +97,8 @@ CONFIGS = {  # (cases, quick) -> Config
     ("inter", True): QUICK_INTER,
     ("heldout", False): Config(cases="heldout"),
     ("heldout", True): Config(quick=True, width=256, samples=16, cases="heldout"),
+    ("more", False): Config(cases="more"),
+    ("more", True): Config(quick=True, width=256, samples=16, cases="more"),
 }
 
 
@@ -310,9 +315,13 @@ def run_command(
         except motion_report.MotionInputError as exc:
             raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
+    if cases == "more" and not mirror_only:
+        raise ScenesInputError("--cases more runs with --mirror-only only")
     if mirror_only:
-        if cases not in ("default", "heldout"):
-            raise ScenesInputError("--mirror-only runs the default or the held-out scenes only")
+        if cases not in ("default", "heldout", "more"):
+            raise ScenesInputError(
+                "--mirror-only runs the default, the held-out or the more scenes only"
+            )
         data = run_mirror(
             config,
             cache=cache,

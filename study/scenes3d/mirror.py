@@ -17,6 +17,7 @@ import dataclasses
 import hashlib
 import importlib
 import json
+import math
 import pathlib
 import time
 
@@ -273,9 +274,10 @@ def table(data) -> str:
         f"| mean | | {mean('psnr', label):.2f} | {mean('psnr', run.MEAN):.2f} | "
         f"{np.mean(dp):+.2f} | {mean('ssim', label):.3f} | {mean('ssim', run.MEAN):.3f} |"
     )
+    spread = f" (standard error {np.std(dp, ddof=1) / math.sqrt(n):.2f})" if n > 1 else ""
     rows.append(
         f"\nahead of the plate mean: PSNR in {sum(d > 0 for d in dp)}/{n}, SSIM in "
-        f"{sum(d > 0 for d in ds)}/{n}; mean difference {np.mean(dp):+.2f} dB, "
+        f"{sum(d > 0 for d in ds)}/{n}; mean difference {np.mean(dp):+.2f} dB{spread}, "
         f"{np.mean(ds):+.3f} SSIM"
     )
     return "\n".join(rows)

@@ -62,6 +62,33 @@ def test_the_held_out_scenes_use_only_the_held_out_hdris_with_every_shape():
     assert [s.name for s in scenes.held_out_set(quick=True)] == [s.name for s in held[:2]]
 
 
+def test_the_more_scenes_continue_the_default_sets_draw():
+    """`--cases more`: the 16 scenes' own rule run on (seeds 117-148, set indices 16-47), so
+    the six HDRIs and four shapes keep their turns and no scene repeats one of the 16."""
+    more, first = scenes.more_set(), scenes.scene_set()
+    assert len(more) == 32 and [s.to_json() for s in more] == [
+        s.to_json() for s in scenes.more_set()
+    ]
+    assert not {s.name for s in more} & {s.name for s in first}
+    both = first + more
+    assert [s.hdri for s in both] == [scenes.HDRIS[i % 6] for i in range(48)]
+    assert [s.shape for s in both] == [scenes.SHAPES[i % 4] for i in range(48)]
+    assert [s.name for s in scenes.more_set(quick=True)] == [s.name for s in more[:2]]
+
+
+def test_the_more_scenes_run_only_in_the_fast_mirror_loop():
+    r = subprocess.run(
+        [sys.executable, "-m", "study", "scenes", "--cases", "more"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and r.stderr.strip() == (
+        "study: error: --cases more runs with --mirror-only only"
+    ), r.stderr
+
+
 def test_the_command_rejects_more_jobs_in_one_line():
     r = subprocess.run(
         [sys.executable, "-m", "study", "scenes", "--quick", "--jobs", "2"],

@@ -61,6 +61,19 @@ def test_the_first_run_renders_four_and_the_second_only_the_method(runs):
     assert (out / "scenes3d_mirror_quick.json").stat().st_size > 500
 
 
+def test_the_table_gives_the_mean_difference_and_its_standard_error(runs):
+    from study.scenes3d import mirror
+
+    first = runs[0]
+    diffs = [
+        r["results"]["mirror"][LABEL]["psnr"] - r["results"]["mirror"]["Plate mean"]["psnr"]
+        for r in first["scenes"]
+    ]
+    mean = sum(diffs) / len(diffs)
+    se = math.sqrt(sum((d - mean) ** 2 for d in diffs) / (len(diffs) - 1) / len(diffs))
+    assert f"mean difference {mean:+.2f} dB (standard error {se:.2f})" in mirror.table(first)
+
+
 def test_cached_renders_score_as_the_fresh_ones(runs):
     first, again, _, _, _, _, _ = runs
     for a, b in zip(first["scenes"], again["scenes"]):
