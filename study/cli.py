@@ -129,6 +129,18 @@ def build_parser() -> argparse.ArgumentParser:
         "oracles.py): shadow, the subject's own shadow in the plate; proxies, the ray-traced "
         "pass without and with the scene's true boxes for the mirror's rays",
     )
+    p.add_argument(
+        "--width",
+        type=int,
+        metavar="W",
+        help="with --mirror-only: render W pixels wide (the height 9/16 of it; default 320)",
+    )
+    p.add_argument(
+        "--samples",
+        type=int,
+        metavar="N",
+        help="with --mirror-only: Cycles samples per pixel (default 32)",
+    )
     sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
     return parser
 
@@ -159,6 +171,8 @@ def main(argv=None) -> int:
                     split=args.split,
                     surroundings=args.surroundings,
                     oracle=args.oracle,
+                    width=args.width,
+                    samples=args.samples,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc

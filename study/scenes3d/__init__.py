@@ -20,6 +20,7 @@ only: bpy is imported when a run starts (once per process); the product never im
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import math
@@ -162,7 +163,12 @@ def run_mirror(
         + ("" if sky_gain is None else f" --sky-gain {sky_gain:g}")
         + ("" if surroundings is None else f" --surroundings {surroundings}")
         + (" --split" if split else "")
-        + ("" if oracle is None else f" --oracle {oracle}"),
+        + ("" if oracle is None else f" --oracle {oracle}")
+        + (
+            ""
+            if config == CONFIGS[config.cases, config.quick]
+            else f" --width {config.width} --samples {config.samples}"
+        ),
         "sky_gain": sky_gain,
         "oracle": oracle,
         "surroundings": surroundings,
@@ -270,6 +276,8 @@ def run_command(
     split=False,
     surroundings=None,
     oracle=None,
+    width=None,
+    samples=None,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
@@ -280,17 +288,25 @@ def run_command(
     prior's gain ``sky_gain`` or the panel's ``surroundings`` if given): prints its table,
     and with ``out`` writes only OUT/scenes3d_mirror(_quick).json; with ``split`` also where
     the default's error lies (`mirror.split_table`); with ``oracle`` also that oracle's rows
-    (`oracles`, `mirror.oracle_table`)."""
+    (`oracles`, `mirror.oracle_table`); ``width`` and ``samples``: its renders' width (the
+    height 9/16 of it) and Cycles samples in place of the set's."""
     if not mirror_only and (
         cache is not None
         or sky_gain is not None
         or split
         or surroundings is not None
         or oracle is not None
+        or width is not None
+        or samples is not None
     ):
         raise ScenesInputError(
-            "--cache, --sky-gain, --surroundings, --split and --oracle go with --mirror-only"
+            "--cache, --sky-gain, --surroundings, --split, --oracle, --width and --samples go "
+            "with --mirror-only"
         )
+    if width is not None and not 64 <= width <= 3840:
+        raise ScenesInputError(f"--width: 64..3840, not {width}")
+    if samples is not None and not 1 <= samples <= 4096:
+        raise ScenesInputError(f"--samples: 1..4096, not {samples}")
     if oracle not in (None, *ORACLES):
         raise ScenesInputError(f"--oracle: one of {', '.join(ORACLES)}, not {oracle!r}")
     if sky_gain is not None and surroundings is not None:
@@ -315,6 +331,10 @@ def run_command(
         except motion_report.MotionInputError as exc:
             raise ScenesInputError(str(exc)) from exc
     config = CONFIGS[cases, bool(quick)]
+    if width is not None or samples is not None:
+        config = dataclasses.replace(
+            config, width=width or config.width, samples=samples or config.samples
+        )
     if cases == "more" and not mirror_only:
         raise ScenesInputError("--cases more runs with --mirror-only only")
     if mirror_only:

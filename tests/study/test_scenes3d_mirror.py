@@ -74,6 +74,24 @@ def test_the_table_gives_the_mean_difference_and_its_standard_error(runs):
     assert f"mean difference {mean:+.2f} dB (standard error {se:.2f})" in mirror.table(first)
 
 
+def test_width_and_samples_set_the_renders(runs, cache):
+    """--width / --samples: the same scenes rendered smaller (the subject's pixels about a
+    quarter at half the width), cached apart from the set's own size, and said in the record's
+    command."""
+    from study.scenes3d import run_command
+
+    first = runs[0]
+    small, _ = run_command(
+        quick=True, mirror_only=True, cache=cache, width=128, samples=4, log=lambda _: None
+    )
+    assert small["resolution"] == [128, 72] and small["samples"] == 4
+    assert small["command"].endswith("--mirror-only --width 128 --samples 4")
+    assert all(r["renders"] == 4 for r in small["scenes"])  # not the set's cached renders
+    for a, b in zip(first["scenes"], small["scenes"]):
+        ratio = b["subject_pixels"] / a["subject_pixels"]
+        assert 0.1 < ratio < 0.25, ratio  # (128 / 256)^2 = 0.25 less the edges
+
+
 def test_cached_renders_score_as_the_fresh_ones(runs):
     first, again, _, _, _, _, _ = runs
     for a, b in zip(first["scenes"], again["scenes"]):
@@ -210,6 +228,10 @@ def test_cache_and_sky_gain_need_mirror_only_in_one_line():
         ["--mirror-only", "--sky-gain", "-1"],
         ["--mirror-only", "--sky-gain", "1", "--surroundings", "open"],
         ["--mirror-only", "--surroundings", "outdoors"],
+        ["--width", "640"],
+        ["--samples", "64"],
+        ["--mirror-only", "--width", "10"],
+        ["--mirror-only", "--samples", "0"],
     ):
         r = subprocess.run(
             [sys.executable, "-m", "study", "scenes", "--quick", *extra],
