@@ -127,12 +127,32 @@ def _unit(text):
 def parse(argv):
     """The command line -> an argparse namespace whose attributes are BatchOptions' fields
     (`batch_options` makes it one). Needs no bpy."""
+    return parser().parse_args(argv)
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line's options, each with its help."""
     p = _Parser(prog="render_shot", description=__doc__.splitlines()[0])
     p.add_argument("blend", nargs="?", help="the shot (.blend); omit under blender -b shot.blend")
     p.add_argument("--plate", required=True, help="background plate image file")
     p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument("--objects", nargs="+", default=None)
-    p.add_argument("--combine", choices=("REPLACE", "MODULATE", "MIX", "WORLD"), default=None)
+    p.add_argument(
+        "--objects",
+        nargs="+",
+        default=None,
+        metavar="NAME",
+        help="the reflective objects (default: those marked in the panel, else every visible "
+        "object with a surface)",
+    )
+    p.add_argument(
+        "--combine",
+        choices=("REPLACE", "MODULATE", "MIX", "WORLD"),
+        default=None,
+        help="the look: REPLACE (chrome: the object shows the map), MODULATE (the material's "
+        "colour times the map), MIX (the map blended over the material's own shader by "
+        "strength and Fresnel), WORLD (one shared map as world lighting for any material); "
+        "default: the shot's setting",
+    )
     p.add_argument(
         "--resolution", type=_resolution, default=None, help="lat-long map width, or AUTO"
     )
@@ -161,23 +181,29 @@ def parse(argv):
         "(nothing known), or world (the shot's world holds the on-set HDRI: it is used there); "
         "default: the shot's setting",
     )
-    p.add_argument("--frame", type=int, default=None)
-    p.add_argument("--engine", choices=("CYCLES", "EEVEE"), default=None)
-    p.add_argument("--samples", type=int, default=None)
+    p.add_argument("--frame", type=int, default=None, help="the frame (default: the shot's)")
+    p.add_argument(
+        "--engine", choices=("CYCLES", "EEVEE"), default=None, help="default: the shot's"
+    )
+    p.add_argument("--samples", type=int, default=None, help="render samples (default: the shot's)")
     p.add_argument("--scale", type=int, default=None, help="resolution percentage")
     p.add_argument(
         "--passes", type=_passes, default=1, help="inter-reflection passes r, or auto (default 1)"
     )
     p.add_argument("--tolerance", type=float, default=None, help="--passes auto: stop below")
     p.add_argument("--max-passes", type=int, default=None, help="--passes auto: at most")
-    p.add_argument("--no-reflections", action="store_true")
+    p.add_argument(
+        "--no-reflections",
+        action="store_true",
+        help="render the shot over the plate without virtual reflections (a reference)",
+    )
     p.add_argument("--name", default=None, help="output file stem (default: the .blend's name)")
     p.add_argument("--frames", default=None, help="1-240, 1..240, 1-10x2, 5 or 1,3,7-9")
     p.add_argument("--format", choices=("exr", "png"), default="exr", help="frame range output")
     p.add_argument("--overwrite", action="store_true", help="render complete frames again")
     p.add_argument("--report", default=None, help="report path (default DIR/<name>.report.json)")
     p.add_argument("--smoothing", type=_unit, default=None, help="bounds smoothing 0..0.95")
-    return p.parse_args(argv)
+    return p
 
 
 def main(argv=None):

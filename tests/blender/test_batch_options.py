@@ -53,6 +53,17 @@ def test_parse_needs_no_bpy():
     assert r.returncode == 0 and r.stdout.strip() == "1-3", r.stderr
 
 
+def test_every_option_says_what_it_does(render_shot):
+    """render_shot --help: a TD reads what each option does, and its default where the shot's
+    own setting is kept."""
+    actions = [a for a in render_shot.parser()._actions if a.dest != "help"]
+    assert len(actions) > 20
+    silent = [a.dest for a in actions if not (a.help or "").strip()]
+    assert not silent, silent
+    text = render_shot.parser().format_help()
+    assert "--combine {REPLACE,MODULATE,MIX,WORLD}" in text and "the shot's setting" in text
+
+
 def test_defaults_are_render_shots(batch_options, render_shot):
     BatchOptions = batch_options.BatchOptions
     namespace = render_shot.parse(BASE)
