@@ -69,7 +69,13 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         metavar=("X0", "Y0", "X1", "Y1"),
         help="object bounds in plate pixels (origin top-left, y down, X1/Y1 exclusive)",
     )
-    p.add_argument("--layout", choices=("latlong", "cube"), default="latlong")
+    p.add_argument(
+        "--layout",
+        choices=("latlong", "cube"),
+        default="latlong",
+        help="latlong (default): OpenEXR's lat-long map, width 2 x height; cube: OpenEXR's "
+        "vertical strip of six faces, +X -X +Y -Y +Z -Z top to bottom (docs/conventions.md)",
+    )
     p.add_argument(
         "--width",
         type=int,
@@ -108,7 +114,8 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         metavar="{camera,paper}",
         default="camera",
         help="camera (default): the plate placed by --hfov, unseen directions filled from its "
-        "edges (the add-on's Camera View); paper: Ropinski et al. 2004; frustum: same as camera",
+        "edges (the add-on's Camera View); paper: Ropinski et al. 2004 (frustum: an older "
+        "name of camera)",
     )
 
 

@@ -1,5 +1,6 @@
 """The command line's contract: options, exit codes, outputs, no partial files."""
 
+import argparse
 import os
 import subprocess
 import sys
@@ -176,3 +177,14 @@ def test_segment_needs_no_hfov(plate, tmp_path):
     """segment draws the paper's regions, so the camera default asks for nothing more."""
     r = run("segment", plate, "-o", tmp_path / "s.png", "--bbox", 60, 30, 100, 60)
     assert r.returncode == 0, r.stderr
+
+
+def test_every_option_says_what_it_does():
+    from virtual_reflections.cli import build_parser
+
+    parser = build_parser()
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, sub in commands.choices.items():
+        silent = [a.dest for a in sub._actions if a.dest != "help" and not (a.help or "").strip()]
+        assert not silent, (name, silent)
+    assert set(commands.choices) == {"envmap", "segment"}
