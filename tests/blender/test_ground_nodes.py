@@ -139,8 +139,8 @@ def test_each_point_of_a_mirror_reflects_its_own_ground_point(addon, tmp_path):
 @pytest.mark.slow
 def test_eevee_reads_the_ground_per_point_as_cycles_does(addon, tmp_path):
     """The same ball in EEVEE (software GL): its material's ground lookup is the same node
-    tree, so the same pixels show their own ground point's colour (89 % where Cycles has 92 %:
-    EEVEE filters the plate's texture more at grazing angles), the parallax pixels included."""
+    tree, so the same pixels show their own ground point's colour (89 % of them where Cycles
+    has 92 %), the parallax pixels included."""
     scene, _, _ = make_shot()
     scene.render.engine = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
     scene.render.film_transparent = True
