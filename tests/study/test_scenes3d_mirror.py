@@ -74,19 +74,22 @@ def test_the_table_gives_the_mean_difference_and_its_standard_error(runs):
     assert f"mean difference {mean:+.2f} dB (standard error {se:.2f})" in mirror.table(first)
 
 
-def test_width_and_samples_set_the_renders(runs, cache):
+def test_width_and_samples_set_the_renders(runs, tmp_path):
     """--width / --samples: the same scenes rendered smaller (the subject's pixels about a
     quarter at half the width), cached apart from the set's own size, and said in the record's
-    command."""
+    command. (A cache of its own: the oracle tests find their scenes' folders by name.)"""
     from study.scenes3d import run_command
 
     first = runs[0]
     small, _ = run_command(
-        quick=True, mirror_only=True, cache=cache, width=128, samples=4, log=lambda _: None
+        quick=True, mirror_only=True, cache=tmp_path, width=128, samples=4, log=lambda _: None
     )
     assert small["resolution"] == [128, 72] and small["samples"] == 4
     assert small["command"].endswith("--mirror-only --width 128 --samples 4")
-    assert all(r["renders"] == 4 for r in small["scenes"])  # not the set's cached renders
+    assert all(r["renders"] == 4 for r in small["scenes"])
+    again, _ = run_command(quick=True, mirror_only=True, cache=tmp_path, log=lambda _: None)
+    assert all(r["renders"] == 4 for r in again["scenes"])  # the set's size: not those renders
+    assert len(list(tmp_path.iterdir())) == 2 * len(small["scenes"])
     for a, b in zip(first["scenes"], small["scenes"]):
         ratio = b["subject_pixels"] / a["subject_pixels"]
         assert 0.1 < ratio < 0.25, ratio  # (128 / 256)^2 = 0.25 less the edges
