@@ -38,20 +38,23 @@ def _draw_surroundings(col, settings, context):
     named by the artist"); the World HDRI's source; under Auto, a hint when the world holds an
     HDRI (World HDRI would read it) or else when the camera sees no sky."""
     col.prop(settings, "surroundings")
-    if settings.surroundings == "WORLD":
-        try:
-            world = world_probe.user_world(context.scene)
-            node = world_probe.environment_node(world)
-            _wrapped(col, f"Reads '{node.image.name}' from world '{world.name}'", context)
-        except ValueError as exc:
-            _wrapped(col, f"{exc}: Auto is used", context, icon="ERROR")
-    if settings.surroundings != "AUTO":
+    if settings.surroundings not in ("WORLD", "AUTO"):
         return
-    hdri = _world_hdri(context.scene)
-    if hdri is not None:  # the on-set HDRI may be there already: say how to use it
+    world = world_probe.user_world(context.scene)
+    try:  # the one HDRI World HDRI reads from the artist's world
+        image, problem = world_probe.environment_node(world).image.name, None
+    except ValueError as exc:
+        image, problem = None, str(exc)
+    if settings.surroundings == "WORLD":
+        if image is not None:
+            _wrapped(col, f"Reads '{image}' from world '{world.name}'", context)
+        else:
+            _wrapped(col, f"{problem}: Auto is used", context, icon="ERROR")
+    elif image is not None:  # Auto, the on-set HDRI perhaps there already: say how to use it
         _wrapped(
             col,
-            f"{hdri}: World HDRI reads it for the sky the plate does not show",
+            f"World '{world.name}' holds '{image}': World HDRI reads it for the sky the plate "
+            "does not show",
             context,
             icon="INFO",
         )
@@ -62,17 +65,6 @@ def _draw_surroundings(col, settings, context):
             context,
             icon="INFO",
         )
-
-
-def _world_hdri(scene) -> str | None:
-    """The hint's start, World 'Y' holds 'X', when the artist's world has the one HDRI that
-    World HDRI would read; None otherwise."""
-    world = world_probe.user_world(scene)
-    try:
-        node = world_probe.environment_node(world)
-    except ValueError:
-        return None
-    return f"World '{world.name}' holds '{node.image.name}'"
 
 
 class _Tab:
