@@ -170,7 +170,8 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="NAME",
         help="the object the reflective objects stand on, for --method ground (default: the "
-        "shot's setting, else a shadow catcher, else the lowest point of the objects)",
+        "shot's setting, else a shadow catcher, else a flat mesh under them, else their lowest "
+        "point)",
     )
     p.add_argument(
         "--surroundings",

@@ -66,7 +66,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         name="Ground",
         type=bpy.types.Object,
         description="The object the reflective objects stand on (Camera View + Ground); empty: "
-        "a shadow catcher in the scene, else the lowest point of the objects",
+        "a shadow catcher in the scene, else a flat mesh under them, else their lowest point",
     )
     surroundings: EnumProperty(
         update=_shaping_changed,
