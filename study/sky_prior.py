@@ -30,6 +30,7 @@ import numpy as np
 
 from virtual_reflections.colour import linear_to_srgb
 from virtual_reflections.fill import GROUND_BAND_DEG
+from virtual_reflections.params import Params
 from virtual_reflections.prefilter import prefilter_latlong
 
 from .evaluate import hdri_dir
@@ -48,10 +49,13 @@ ROUGHNESS = (0.15, 0.35, 0.5, 1.0)  # the rough surfaces' knots (params.ROUGH_SK
 LIT_GAINS = np.round(np.arange(0.1, 40.01, 0.1), 2)  # the lit-ground model's (rough: larger)
 ALBEDOS = (0.1, 0.2, 0.3, 0.4)  # the lit ground's, pooled
 LUMA = np.array([0.2126, 0.7152, 0.0722])
+FILL_ENERGY = Params().fill_energy  # the level's brightening toward the band's mean (0.5)
 
 
-def errors(image) -> np.ndarray:
-    """(len(GAINS),) display-value error of each gain for one equirectangular image."""
+def errors(image, exponent: float = FILL_ENERGY) -> np.ndarray:
+    """(len(GAINS),) display-value error of each gain for one equirectangular image, its
+    level the band's log-average luminance brightened toward the mean by ``exponent`` (the
+    fill's `energy`: `fill.prior_level`)."""
     rgb = image[..., :3]
     h, w = rgb.shape[:2]
     lat = np.pi * (0.5 - (np.arange(h) + 0.5) / h)
@@ -63,7 +67,7 @@ def errors(image) -> np.ndarray:
     below, wd = lum[down], weight[down]
     log_average = np.exp((np.log(below + 1e-4) * wd).sum() / wd.sum())
     mean = (below * wd).sum() / wd.sum()
-    level = log_average * (mean / log_average) ** 0.5
+    level = log_average * (mean / log_average) ** exponent
     target = linear_to_srgb(np.clip(rgb[up], 0, 1))
     wu = weight[up]
     out = []
@@ -127,11 +131,23 @@ def best_index(per: dict, names) -> int:
     return int(np.argmin(sum(per[name] for name in names if name in per)))
 
 
+def load_images() -> dict:
+    """Blender's bundled HDRIs: {name: (H, W, 3) float32 equirectangular, scene-linear}."""
+    return {p.stem: load_equirect(str(p))[..., :3] for p in sorted(hdri_dir().glob("*.exr"))}
+
+
+def gain_for_exponent(images, exponent: float) -> float:
+    """The gain of `run`'s derivation (the summed error over TRAIN) with the level brightened
+    by ``exponent`` (docs/scenes3d.md, "The level's statistic")."""
+    per = {name: errors(image, exponent) for name, image in images.items()}
+    return float(GAINS[best_index(per, TRAIN)])
+
+
 def run() -> dict:
     """Print the tables; returns the gains: {"auto": the one chosen on the training HDRIs,
     "auto_log": the same fit summing log errors (a variant the add-on does not use), "open":
     .., "enclosed": ..: each kind's from its training HDRIs, "rough": `rough_ratios`}."""
-    images = {p.stem: load_equirect(str(p))[..., :3] for p in sorted(hdri_dir().glob("*.exr"))}
+    images = load_images()
     per = {name: errors(image) for name, image in images.items()}
     at = best_index(per, TRAIN)
     one = int(np.argmin(np.abs(GAINS - 1.0)))

@@ -138,6 +138,37 @@ def test_the_split_adds_up_to_the_scores(runs):
         )
 
 
+def test_the_split_scores_every_level_of_the_prior(runs):
+    """`--split` also keeps each scene's mirror PSNR over the plate mean at every scale of the
+    prior (its part of the render is linear in it) and the band's levels; at scale 1 the curve
+    is the rendered difference, at its smallest near the black prior's, and the level
+    statistic's table gives the run's own mean difference on the add-on's exponent
+    (docs/scenes3d.md, "The level's statistic")."""
+    from study.scenes3d import prior_level
+
+    _, _, dark, _, split, _, _ = runs
+    assert prior_level.SCALES[50] == pytest.approx(1.0)
+    differences = []
+    for b, d in zip(split["scenes"], dark["scenes"]):
+        mirror = b["results"]["mirror"]
+        curve = b["split"]["prior_scales"]
+        assert len(curve) == len(prior_level.SCALES)
+        difference = mirror[LABEL]["psnr"] - mirror["Plate mean"]["psnr"]
+        assert curve[50] == pytest.approx(difference, abs=1e-6)
+        differences.append(difference)
+        # the smallest scale nears the render with the prior black (--sky-gain 0)
+        black = d["results"]["mirror"][LABEL]["psnr"] - mirror["Plate mean"]["psnr"]
+        assert abs(curve[0] - black) < abs(curve[50] - black)
+        assert max(curve) > curve[0] and max(curve) > curve[-1]  # neither black nor blinding
+        band = b["split"]["band"]
+        assert 0 < band["log_average"] < band["mean"]  # a textured ground: the mean is above
+    table = prior_level.statistic_table(split)
+    line = next(row for row in table.splitlines() if "(the add-on's)" in row)
+    assert f"{sum(differences) / len(differences):+.2f} dB" in line, table
+    assert len(table.splitlines()) == 2 + len(prior_level.EXPONENTS)
+    assert "Auto gain only" in prior_level.statistic_table(dark)
+
+
 def test_the_artist_names_each_scenes_surroundings_by_its_hdri(runs):
     """The quick subset is a city (open sky) and an interior (enclosed): each scene's panel
     setting is its kind, the plate mean is untouched and the method's maps change."""

@@ -35,3 +35,15 @@ def test_the_sky_gains_are_the_studys(capsys):
             for check in line.split("|")[4].split(","):
                 ours, auto = (float(v) for v in check.split()[-3::2])
                 assert ours < auto, check
+
+
+def test_the_level_statistics_gain_is_the_add_ons_at_its_exponent():
+    """`gain_for_exponent` derives the gain as `run` does for any brightening of the band's
+    level; at the add-on's own (Params.fill_energy) it is the add-on's gain, and a level
+    brightened further toward the band's mean wants a smaller gain."""
+    images = sky_prior.load_images()
+    assert sky_prior.gain_for_exponent(images, Params().fill_energy) == pytest.approx(
+        SKY_GAINS["auto"]
+    )
+    assert sky_prior.gain_for_exponent(images, 1.0) < SKY_GAINS["auto"]
+    assert sky_prior.gain_for_exponent(images, 0.0) > SKY_GAINS["auto"]

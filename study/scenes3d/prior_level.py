@@ -1,0 +1,83 @@
+"""How the sky prior's level is taken, measured on the fast mirror loop's ``--split`` renders
+(docs/scenes3d.md, "The level's statistic").
+
+The prior's part of a mirror render is linear in the prior's level: with the prior black
+(``dark``) and at the run's gain (``full``), the prior scaled by s renders as
+dark + s (full - dark). So one pair of renders scores every level: `scale_curve` keeps each
+scene's mirror PSNR over `SCALES`, less the plate mean's. The level is the ground band's
+log-average luminance brightened toward its mean by an exponent (`fill.prior_level`'s
+``energy``, the add-on's `Params.fill_energy`); `band_levels` takes both as the engine does,
+on the plate's mip level the fill uses; `statistic_table` scores each exponent of `EXPONENTS`
+with the gain derived again on the HDRIs for it (`sky_prior.gain_for_exponent`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from virtual_reflections.camera_view import intrinsics_from_hfov
+from virtual_reflections.fill import fill_geometry, fill_level, prior_level
+from virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
+from virtual_reflections.params import SKY_GAINS, Params
+
+from .. import sky_prior
+from ..evaluate.metrics import psnr, to_display
+
+SCALES = np.exp(np.linspace(math.log(1 / 32), math.log(32), 101))  # SCALES[50] == 1
+EXPONENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def scale_curve(full, dark, truth, mask, crop, baseline: float) -> list:
+    """(len(SCALES),) mirror PSNR of the linear composites ``full`` (the prior at the run's
+    gain) and ``dark`` (the prior black) with the prior's part scaled by each of SCALES,
+    scored on ``mask`` within ``crop`` as `run.score` does, less ``baseline`` (the plate
+    mean's PSNR)."""
+    y0, y1, x0, x1 = crop
+    f, d = full[y0:y1, x0:x1], dark[y0:y1, x0:x1]
+    t, m = to_display(truth[y0:y1, x0:x1]), mask[y0:y1, x0:x1]
+    return [float(psnr(to_display(d + s * (f - d)), t, m)) - baseline for s in SCALES]
+
+
+def band_levels(plate, hfov_deg: float, pitch_deg: float) -> dict:
+    """The level `fill.prior_level` takes of the (H, W, 3) linear ``plate`` seen by a level
+    camera (no roll) ``pitch_deg`` down with horizontal field ``hfov_deg``, at energy 0 (the
+    ground band's log-average luminance) and 1 (its mean), on the mip level the fill uses."""
+    h, w = plate.shape[:2]
+    shapes = level_shapes(h, w)
+    level = fill_level(shapes)
+    pixels = level_view(build_pyramid(plate), shapes, level)
+    p = math.radians(pitch_deg)
+    up = (0.0, math.cos(p), -math.sin(p))  # the engine's camera frame: +X left, +Y up, +Z ahead
+    intrinsics = intrinsics_from_hfov(w, h, hfov_deg)
+    bins, _, _ = fill_geometry(shapes[level], level, intrinsics, Params().fill_width, up=up)
+    return {"log_average": prior_level(pixels, bins, 0.0), "mean": prior_level(pixels, bins, 1.0)}
+
+
+def statistic_table(data) -> str:
+    """Per exponent of EXPONENTS: the gain derived on the HDRIs for it and the mean mirror
+    PSNR over the plate mean (scenes ahead) it gives, from each scene's `scale_curve` and
+    `band_levels` (the record's "split"). Only for a run at the add-on's own Auto gain."""
+    if data.get("sky_gain") is not None or data.get("surroundings") not in (None, "auto"):
+        return "(the level's statistic: at the Auto gain only, not --sky-gain or --surroundings)"
+    energy, base = Params().fill_energy, SKY_GAINS["auto"]
+    images = sky_prior.load_images()
+    rows = [
+        "| exponent | gain from the HDRIs | mirror PSNR over the plate mean | ahead |",
+        "|---|---|---|---|",
+    ]
+    for exponent in EXPONENTS:
+        gain = sky_prior.gain_for_exponent(images, exponent)
+        over = []
+        for record in data["scenes"]:
+            split = record["split"]
+            band = split["band"]
+            scale = gain / base * (band["mean"] / band["log_average"]) ** (exponent - energy)
+            over.append(np.interp(math.log(scale), np.log(SCALES), split["prior_scales"]))
+        d = np.array(over)
+        mark = " (the add-on's)" if exponent == energy else ""
+        rows.append(
+            f"| {exponent:g}{mark} | {gain:.1f} | {d.mean():+.2f} dB | {(d > 0).sum()}/{len(d)} |"
+        )
+    return "\n".join(rows)
