@@ -185,15 +185,25 @@ def error_split(composites: dict, dark, truth, mask, label: str) -> dict:
     default's composite with Params.sky_gain = 0) and the others (the ground, the plate's
     extension at the horizon, the seen region). Per method in ``composites`` (linear
     composites over the plate), the mean squared display error over the subject's pixels
-    and channels, split in those two parts (they add up to the MSE its PSNR is taken from).
-    Returns {"sky_share": share of the subject's pixels, name: {"sky": .., "rest": ..}}."""
+    and channels, split in those two parts (they add up to the MSE its PSNR is taken from),
+    and of the first part its level: the squared difference of the method's mean and the
+    truth's on those pixels (per channel, averaged), weighted as the part is. Returns
+    {"sky_share": share of the subject's pixels, "truth_spread": the truth's own variance on
+    those pixels (per channel, averaged; weighted alike), name: {"sky": .., "rest": ..,
+    "sky_level": ..}}."""
     shown = {name: run.to_display(image)[mask] for name, image in composites.items()}
     target = run.to_display(truth)[mask]
     sky = np.abs(shown[label] - run.to_display(dark)[mask]).max(axis=1) > SPLIT_CHANGE
-    out = {"sky_share": float(sky.mean())}
+    share = float(sky.mean())
+    out = {"sky_share": share, "truth_spread": float(target[sky].var(0).mean()) * share}
     for name, values in shown.items():
         error = ((values - target) ** 2).mean(axis=1) / max(int(mask.sum()), 1)
-        out[name] = {"sky": float(error[sky].sum()), "rest": float(error[~sky].sum())}
+        level = ((values[sky].mean(0) - target[sky].mean(0)) ** 2).mean() * share
+        out[name] = {
+            "sky": float(error[sky].sum()),
+            "rest": float(error[~sky].sum()),
+            "sky_level": float(level),
+        }
     return out
 
 
@@ -315,7 +325,13 @@ def split_table(data) -> str:
         f"{p[:, 2].mean():.4f} / {p[:, 3].mean():.4f} |"
     )
     base = -10 * np.log10(p[:, 2] + p[:, 3])  # the plate mean's PSNR
+    level = np.mean([r["split"][label]["sky_level"] for r in data["scenes"]])
+    spread = np.mean([r["split"]["truth_spread"] for r in data["scenes"]])
     rows.append("")
+    rows.append(
+        f"of {label}'s error on the prior's pixels ({p[:, 0].mean():.4f}): its level "
+        f"{level:.4f}, the truth's own spread about its mean {spread:.4f}"
+    )
     for text, sky, rest in (
         ("as rendered", 1.0, 1.0),
         ("the rest's error halved", 1.0, 0.5),

@@ -132,6 +132,9 @@ def test_the_split_adds_up_to_the_scores(runs):
             psnr = b["results"]["mirror"][name]["psnr"]
             assert abs(-10 * math.log10(mse) - psnr) < 1e-3
             assert parts[name]["sky"] > 0 and parts[name]["rest"] > 0
+            # a mean squared error is its level plus the variance of the difference
+            assert 0 <= parts[name]["sky_level"] <= parts[name]["sky"] + 1e-12
+        assert parts["truth_spread"] > 0
         assert (
             abs(a["results"]["mirror"][LABEL]["psnr"] - b["results"]["mirror"][LABEL]["psnr"])
             < 0.05
