@@ -287,8 +287,9 @@ def run_command(
     ``mirror_only``: the fast mirror loop (`run_mirror`, renders cached in ``cache``, the sky
     prior's gain ``sky_gain`` or the panel's ``surroundings`` if given): prints its table,
     and with ``out`` writes only OUT/scenes3d_mirror(_quick).json; with ``split`` also where
-    the default's error lies (`mirror.split_table`) and how its level
-    statistic scores (`prior_level.statistic_table`); with ``oracle`` also that oracle's rows
+    the default's error lies (`mirror.split_table`), how its level statistic and the
+    constant gain score (`prior_level.statistic_table`) and its colour
+    (`prior_colour.colour_table`); with ``oracle`` also that oracle's rows
     (`oracles`, `mirror.oracle_table`); ``width`` and ``samples``: its renders' width (the
     height 9/16 of it) and Cycles samples in place of the set's."""
     if not mirror_only and (
@@ -352,7 +353,7 @@ def run_command(
             surroundings=surroundings,
             oracle=oracle,
         )
-        from . import mirror, prior_level  # bpy is importable: run_mirror said so
+        from . import mirror, prior_colour, prior_level  # bpy is importable: run_mirror said so
 
         print(mirror.table(data))
         if split:
@@ -360,6 +361,8 @@ def run_command(
             print(mirror.split_table(data))
             print()
             print(prior_level.statistic_table(data))
+            print()
+            print(prior_colour.colour_table(data))
         if oracle is not None:
             print()
             print(mirror.oracle_table(data, oracle))

@@ -27,7 +27,7 @@ import numpy as np
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
 
-from . import build, oracles, prior_level, run
+from . import build, oracles, prior_colour, prior_level, run
 from .scenes import Scene3D
 
 MIRROR = "mirror"
@@ -62,8 +62,9 @@ def run_scene(
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
     method and the plate mean. ``split``: also the default with a black sky prior (one more
     Generate and render), and the record's "split" (`error_split`; with the PSNR over the plate
-    mean at every scale of the prior, `prior_level.scale_curve`, and the band's levels,
-    `prior_level.band_levels`). ``surroundings``: the
+    mean at every scale of the prior, `prior_level.scale_curve`, the band's levels,
+    `prior_level.band_levels`, and at every tint of the prior, `prior_colour.tint_scores`).
+    ``surroundings``: the
     panel's Surroundings for it (`run.surroundings_of`). ``oracle``: also the rows of that
     oracle (the package's ORACLES, `oracles`), scored as the default's."""
     started = time.perf_counter()
@@ -168,6 +169,10 @@ def run_scene(
             composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"]
         )
         record["split"]["band"] = prior_level.band_levels(plate8, spec.hfov_deg(), spec.pitch_deg)
+        record["split"]["tints"] = prior_colour.tint_scores(
+            composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"],
+            record["plate_mean"],
+        )  # fmt: skip
     log(
         f"{spec.name}: {mask.sum()} px, mirror PSNR {label} {results[label]['psnr']:.2f}, "
         f"plate mean {results[run.MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, {renders} "

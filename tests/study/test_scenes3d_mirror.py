@@ -168,8 +168,36 @@ def test_the_split_scores_every_level_of_the_prior(runs):
     table = prior_level.statistic_table(split)
     line = next(row for row in table.splitlines() if "(the add-on's)" in row)
     assert f"{sum(differences) / len(differences):+.2f} dB" in line, table
-    assert len(table.splitlines()) == 2 + len(prior_level.EXPONENTS)
+    assert len(table.splitlines()) == 2 + len(prior_level.EXPONENTS) + 2
+    # the constant gain the scenes would pick scores at least the add-on's on them
+    gain, best = prior_level.best_constant_gain(split)
+    assert best >= sum(differences) / len(differences) - 1e-9 and gain > 0
+    assert f"{gain:.1f}, {best:+.2f} dB" in table.splitlines()[-1]
     assert "Auto gain only" in prior_level.statistic_table(dark)
+
+
+def test_the_split_scores_the_prior_tinted(runs):
+    """`--split` also keeps each scene's mirror PSNR over the plate mean with the prior tinted
+    toward the plate's mean colour (its part of the render is linear in each channel): the
+    neutral tint is the rendered difference, a tint changes it, and the colour table's first
+    row is the run's own mean (docs/scenes3d.md, "The prior's colour and the plate's mean")."""
+    from study.scenes3d import prior_colour
+
+    _, _, dark, _, split, _, _ = runs
+    assert prior_colour.TINTS[0] == 0.0
+    firsts = []
+    for b in split["scenes"]:
+        mirror = b["results"]["mirror"]
+        tints = b["split"]["tints"]
+        assert len(tints) == len(prior_colour.TINTS)
+        difference = mirror[LABEL]["psnr"] - mirror["Plate mean"]["psnr"]
+        assert tints[0] == pytest.approx(difference, abs=1e-6)
+        assert tints[-1] != pytest.approx(tints[0], abs=1e-4)  # the plates are not grey
+        firsts.append(tints[0])
+    table = prior_colour.colour_table(split)
+    line = next(row for row in table.splitlines() if "(the add-on's)" in row)
+    assert f"{sum(firsts) / len(firsts):+.2f} dB" in line, table
+    assert "Auto gain only" in prior_colour.colour_table(dark)
 
 
 def test_the_artist_names_each_scenes_surroundings_by_its_hdri(runs):
