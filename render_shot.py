@@ -175,12 +175,20 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--surroundings",
-        choices=("auto", "open", "enclosed", "world"),
+        choices=("auto", "open", "enclosed", "world", "custom"),
         default=None,
         help="for --method ground, how bright the sky the plate does not show is taken to be: "
         "open (outdoors under open sky), enclosed (a room, a studio, a walled yard), auto "
-        "(nothing known), or world (the shot's world holds the on-set HDRI: it is used there); "
-        "default: the shot's setting",
+        "(nothing known), world (the shot's world holds the on-set HDRI: it is used there) or "
+        "custom (the shot's Sky Brightness, or --sky-brightness); default: the shot's setting",
+    )
+    p.add_argument(
+        "--sky-brightness",
+        type=float,
+        default=None,
+        metavar="G",
+        help="Surroundings custom: the unseen sky is G times the ground's brightness in the "
+        "plate (0..100; auto takes 1.6, open 3.6, enclosed 0.7); default: the shot's setting",
     )
     p.add_argument("--frame", type=int, default=None, help="the frame (default: the shot's)")
     p.add_argument(

@@ -16,10 +16,12 @@ from dataclasses import dataclass, fields
 
 from ..virtual_reflections.frames import parse_frames
 from ..virtual_reflections.mapsize import WIDTHS
+from ..virtual_reflections.params import MAX_SKY_GAIN
 
 COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
 METHODS = ("ground", "camera", "paper")
-SURROUNDINGS = ("auto", "open", "enclosed", "world")  # params.SKY_GAINS; world: its HDRI
+# params.SKY_GAINS; world: its HDRI; custom: --sky-brightness (the scene's Sky Brightness)
+SURROUNDINGS = ("auto", "open", "enclosed", "world", "custom")
 ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
@@ -55,7 +57,8 @@ class BatchOptions:
     triangles: int | None = None  # 0: continuous front face
     method: str | None = None  # ground, camera or paper
     ground_object: str | None = None  # the ground for --method ground (None: the shot's)
-    surroundings: str | None = None  # auto, open, enclosed or world, for --method ground
+    surroundings: str | None = None  # auto, open, enclosed, world or custom (--method ground)
+    sky_brightness: float | None = None  # Surroundings Custom's, 0..MAX_SKY_GAIN; implies custom
     frame: int | None = None  # one frame of the scene
     engine: str | None = None  # CYCLES or EEVEE
     samples: int | None = None  # render samples (0: the shot's)
@@ -138,6 +141,18 @@ class BatchOptions:
             if not (_is_number(self.tolerance) and self.tolerance >= 0):
                 raise ValueError(f"--tolerance must be a number >= 0, not {self.tolerance!r}")
             object.__setattr__(self, "tolerance", float(self.tolerance))
+        if self.sky_brightness is not None:
+            if not (_is_number(self.sky_brightness) and 0.0 <= self.sky_brightness <= MAX_SKY_GAIN):
+                raise ValueError(
+                    f"--sky-brightness: expected a number from 0 to {MAX_SKY_GAIN:g}, "
+                    f"not {self.sky_brightness!r}"
+                )
+            if self.surroundings not in (None, "custom"):
+                raise ValueError(
+                    f"--sky-brightness sets Surroundings Custom: not with --surroundings "
+                    f"{self.surroundings}"
+                )
+            object.__setattr__(self, "sky_brightness", float(self.sky_brightness))
         if self.smoothing is not None:
             if not (_is_number(self.smoothing) and 0.0 <= self.smoothing <= MAX_SMOOTHING):
                 raise ValueError(

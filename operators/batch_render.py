@@ -71,6 +71,9 @@ def configure(scene, options: BatchOptions):
         settings.ground_object = ground
     if options.surroundings:
         settings.surroundings = options.surroundings.upper()
+    if options.sky_brightness is not None:  # the artist's own sky: Surroundings Custom
+        settings.surroundings = "CUSTOM"
+        settings.sky_brightness = options.sky_brightness
     if options.surroundings == "world":  # asked for by name: a world it cannot read is an error
         try:
             world_probe.environment_node(world_probe.user_world(scene))

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import bpy
 
 from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
-from ..virtual_reflections.params import SKY_GAINS
+from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
 ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
 
@@ -46,6 +46,7 @@ METHOD_ITEMS = (
         "onto a cube (neighbouring objects show on the sides facing them)",
     ),
 )
+MAX_SKY_BRIGHTNESS = MAX_SKY_GAIN  # Surroundings Custom's Sky Brightness: at most the engine's
 SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.params.SKY_GAINS
     (
         "AUTO",
@@ -72,6 +73,13 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
         "World HDRI",
         "The scene's world holds the HDRI shot on set: what the photo does not show comes "
         "from it, turned and as bright as the world is set (read, never changed)",
+    ),
+    (  # last: a file stores an enum by its index, so a new item goes after the others
+        "CUSTOM",
+        "Custom",
+        "Say how bright the unseen sky is: Sky Brightness times the ground's brightness in the "
+        f"photo (Auto takes {SKY_GAINS['auto']:g}; a rough surface's map takes a brighter sky by "
+        "roughness, as under Auto)",
     ),
 )
 FRONT_ITEMS = (

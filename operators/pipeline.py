@@ -92,8 +92,17 @@ def params(settings, intrinsics=None) -> Params:
         triangles=n,
         method="camera" if camera else "paper",
         intrinsics=tuple(intrinsics) if camera else None,
-        sky_gain=sky_gain_for(settings.surroundings.lower()),
+        sky_gain=scene_sky_gain(settings),
     )
+
+
+def scene_sky_gain(settings, roughness: float = 0.0) -> float:
+    """The sky prior's gain the scene's ``settings`` ask for, seen by a surface of
+    ``roughness`` (params.sky_gain_for): the named Surroundings', or with Custom the artist's
+    Sky Brightness."""
+    kind = settings.surroundings.lower()
+    custom = settings.sky_brightness if kind == "custom" else None
+    return sky_gain_for(kind, roughness, custom)
 
 
 @dataclass(frozen=True)
@@ -232,8 +241,7 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
     # A rough surface sees a brighter sky (`sky_roughness`).
-    kind = scene.virtual_reflections.surroundings.lower()
-    gain = sky_gain_for(kind, sky_roughness(scene, objects))
+    gain = scene_sky_gain(scene.virtual_reflections, sky_roughness(scene, objects))
     if per_point_ground(scene, objects):
         return dataclasses.replace(view.params, up=up, sky_gain=gain)
     origin = bounds.to_engine_frame(view.projection, point=centre)

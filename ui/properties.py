@@ -20,8 +20,10 @@ from ..operators.choices import (
     COMBINE_ITEMS,
     FRONT_ITEMS,
     MAP_STORAGE_ITEMS,
+    MAX_SKY_BRIGHTNESS,
     METHOD_ITEMS,
     RESOLUTION_ITEMS,
+    SKY_GAINS,
     SURROUNDINGS_ITEMS,
 )
 
@@ -75,6 +77,20 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         default="AUTO",
         description="What stands around the shot where the photo does not show it (Camera View + "
         "Ground): how bright the unseen sky above and behind the camera is taken to be",
+    )
+    sky_brightness: FloatProperty(
+        update=_shaping_changed,
+        name="Sky Brightness",
+        default=SKY_GAINS["auto"],
+        min=0.0,
+        max=MAX_SKY_BRIGHTNESS,
+        soft_max=8.0,
+        step=10,
+        precision=2,
+        description="Surroundings Custom: the unseen sky above and behind the camera is taken "
+        "as a neutral grey this many times the ground's brightness in the photo (Auto "
+        f"{SKY_GAINS['auto']:g}, Open Sky {SKY_GAINS['open']:g}, Enclosed "
+        f"{SKY_GAINS['enclosed']:g}); raise it until the chrome's top matches the sky you know",
     )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed

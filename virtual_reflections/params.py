@@ -20,6 +20,7 @@ METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method
 # and sunset), "enclosed" a room, a studio or a walled yard (courtyard, interior, studio).
 # `python -m study sky-prior` derives all three; tests/study/test_sky_prior.py ties them to it.
 SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
+MAX_SKY_GAIN = 100.0  # Params.sky_gain's upper bound
 # A map pre-filtered for a rough surface (the Mix look) holds a sky that many times brighter,
 # by roughness: a rough lobe carries a light's energy into the directions around it (the same
 # study, a ground lit by the sky; tests/study/test_sky_prior.py ties them to it).
@@ -30,17 +31,20 @@ ROUGH_SKY_RATIOS = {
 }
 
 
-def sky_gain_for(kind: str, roughness: float = 0.0) -> float:
+def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None) -> float:
     """The sky prior's gain for the surroundings ``kind`` (a key of SKY_GAINS; another, as
-    "world", is "auto") seen by a surface of ``roughness`` (0 for a mirror, or a map that is not
-    pre-filtered): SKY_GAINS times ROUGH_SKY_RATIOS, interpolated linearly in roughness between
-    its knots on the logarithm of the ratio (1 at roughness 0), held beyond the last."""
+    "world" or "custom", is "auto") seen by a surface of ``roughness`` (0 for a mirror, or a map
+    that is not pre-filtered): SKY_GAINS times ROUGH_SKY_RATIOS, interpolated linearly in
+    roughness between its knots on the logarithm of the ratio (1 at roughness 0), held beyond
+    the last. ``custom``: the mirror's gain the artist set (Surroundings Custom, its Sky
+    Brightness) in place of SKY_GAINS[kind]; a rough surface's ratio is then Auto's."""
     kind = kind if kind in SKY_GAINS else "auto"
     knots = ((0.0, 1.0), *ROUGH_SKY_RATIOS[kind])
     r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
     xs = [k for k, _ in knots]
     logs = [math.log(v) for _, v in knots]
-    return SKY_GAINS[kind] * math.exp(float(np.interp(r, xs, logs)))
+    base = SKY_GAINS[kind] if custom is None else float(custom)
+    return min(base * math.exp(float(np.interp(r, xs, logs))), MAX_SKY_GAIN)
 
 
 @dataclass(frozen=True)
@@ -157,8 +161,8 @@ class Params:
             or self.intrinsics[1] <= 0
         ):
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
-        if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= 100.0):
-            raise ValueError(f"sky_gain must be 0..100, got {self.sky_gain}")
+        if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
+            raise ValueError(f"sky_gain must be 0..{MAX_SKY_GAIN:g}, got {self.sky_gain}")
         for name in ("ground", "up"):
             value = getattr(self, name)
             if value is not None:

@@ -87,6 +87,11 @@ def statistic_table(data) -> str:
         f"The constant gain that serves these scenes best (the add-on's statistic): {gain:.1f}, "
         f"{over:+.2f} dB over the plate mean (the add-on's {base:g}: chosen on the HDRIs)"
     )
+    best = np.array([max(record["split"]["prior_scales"]) for record in data["scenes"]])
+    rows.append(
+        f"Each scene at its own best gain (an oracle: Surroundings Custom set to each shot's "
+        f"sky exactly): {best.mean():+.2f} dB, ahead in {(best > 0).sum()}/{len(best)}"
+    )
     return "\n".join(rows)
 
 

@@ -75,6 +75,19 @@ def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
     assert record["inputs"]["reflections"]["combine"] == "MIX"
     assert record["fingerprint"] == report["frames"][0]["fingerprint"]
 
+    # The artist's own sky (Surroundings Custom): rendered again; its brightness is recorded
+    # only under Custom, where it shapes the maps.
+    custom = run(*common, "--plate", plate_b, "--combine", "MIX", "--sky-brightness", 2.5)
+    assert custom.returncode == 0, custom.stderr[-2000:]
+    assert statuses(out) == [("rendered", "made with another reflections")] * 2
+    record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
+    assert record["inputs"]["reflections"]["surroundings"] == "CUSTOM"
+    assert record["inputs"]["reflections"]["sky_brightness"] == 2.5
+    named = run(*common, "--plate", plate_b, "--combine", "MIX", "--surroundings", "auto")
+    assert named.returncode == 0, named.stderr[-2000:]
+    record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
+    assert "sky_brightness" not in record["inputs"]["reflections"]
+
     # The plate file changed in place (same name, new pixels): rendered again.
     plate_file = pathlib.Path(plate_b.replace("####", "0002"))
     plate_file.write_bytes(pathlib.Path(plate_a.replace("####", "0002")).read_bytes())

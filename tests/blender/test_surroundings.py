@@ -123,8 +123,60 @@ def test_the_batch_option_sets_the_surroundings(addon):
     assert scene.virtual_reflections.surroundings == "OPEN"
     render.configure(scene, options.BatchOptions(plate="p.exr", out="o"))
     assert scene.virtual_reflections.surroundings == "OPEN"  # not given: the shot's own
-    with pytest.raises(ValueError, match="--surroundings must be auto, open, enclosed or world"):
+    with pytest.raises(
+        ValueError, match="--surroundings must be auto, open, enclosed, world or custom"
+    ):
         options.BatchOptions(plate="p.exr", out="o", surroundings="outdoors")
+
+
+def test_custom_surroundings_take_the_artists_sky_brightness(addon):
+    """Surroundings Custom: the unseen sky is Sky Brightness times the plate's level, in
+    proportion (straight up from the ball), the ground the plate shows unchanged; the map
+    follows the setting; a rough surface takes Auto's ratio over it."""
+    params = addon_part("virtual_reflections.params")
+    scene, ball = make_shot()
+    settings = scene.virtual_reflections
+    assert settings.sky_brightness == pytest.approx(params.SKY_GAINS["auto"])
+    auto, _ = up_and_ahead(scene, ball)
+    settings.surroundings = "CUSTOM"
+    same, _ = up_and_ahead(scene, ball)  # the default brightness is Auto's
+    np.testing.assert_allclose(same, auto, rtol=0.02)
+    sky = {}
+    for brightness in (0.5, 4.0):
+        settings.sky_brightness = brightness
+        sky[brightness], ground = up_and_ahead(scene, ball)
+        np.testing.assert_allclose(ground, GROUND, atol=0.03)
+        ratio = sky[brightness].mean() / auto.mean()
+        assert ratio == pytest.approx(brightness / params.SKY_GAINS["auto"], rel=0.03)
+    assert params.sky_gain_for("custom", 0.35, 4.0) == pytest.approx(
+        4.0 * params.sky_gain_for("auto", 0.35) / params.SKY_GAINS["auto"]
+    )
+    assert params.sky_gain_for("custom", 1.0, 100.0) == params.MAX_SKY_GAIN  # held in range
+    drawn = draw_main_panel(scene)
+    assert "sky_brightness" in drawn.props
+    settings.surroundings = "OPEN"
+    assert "sky_brightness" not in draw_main_panel(scene).props
+
+
+def test_the_batch_option_sets_the_sky_brightness(addon):
+    """--sky-brightness sets Surroundings Custom and its brightness; --surroundings custom
+    alone keeps the shot's brightness; a brightness with another named kind, or out of range,
+    is refused in one line."""
+    options = addon_part("operators.batch_options")
+    render = addon_part("operators.batch_render")
+    scene, _ = make_shot()
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", sky_brightness=2.5))
+    settings = scene.virtual_reflections
+    assert settings.surroundings == "CUSTOM"
+    assert settings.sky_brightness == pytest.approx(2.5)
+    settings.surroundings, settings.sky_brightness = "AUTO", 3.0
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="custom"))
+    assert (settings.surroundings, round(settings.sky_brightness, 4)) == ("CUSTOM", 3.0)
+    with pytest.raises(ValueError, match="not with --surroundings open"):
+        options.BatchOptions(plate="p.exr", out="o", surroundings="open", sky_brightness=2.0)
+    for bad in (-1.0, 101.0, float("nan"), "bright"):
+        with pytest.raises(ValueError, match="--sky-brightness: expected a number from 0 to 100"):
+            options.BatchOptions(plate="p.exr", out="o", sky_brightness=bad)
 
 
 class _Layout:

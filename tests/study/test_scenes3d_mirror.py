@@ -168,11 +168,15 @@ def test_the_split_scores_every_level_of_the_prior(runs):
     table = prior_level.statistic_table(split)
     line = next(row for row in table.splitlines() if "(the add-on's)" in row)
     assert f"{sum(differences) / len(differences):+.2f} dB" in line, table
-    assert len(table.splitlines()) == 2 + len(prior_level.EXPONENTS) + 2
-    # the constant gain the scenes would pick scores at least the add-on's on them
+    assert len(table.splitlines()) == 2 + len(prior_level.EXPONENTS) + 3
+    # the constant gain the scenes would pick scores at least the add-on's on them, and each
+    # scene's own best at least that
     gain, best = prior_level.best_constant_gain(split)
     assert best >= sum(differences) / len(differences) - 1e-9 and gain > 0
-    assert f"{gain:.1f}, {best:+.2f} dB" in table.splitlines()[-1]
+    assert f"{gain:.1f}, {best:+.2f} dB" in table.splitlines()[-2]
+    own = sum(max(b["split"]["prior_scales"]) for b in split["scenes"]) / len(split["scenes"])
+    assert own >= best - 1e-9
+    assert f"{own:+.2f} dB" in table.splitlines()[-1]
     assert "Auto gain only" in prior_level.statistic_table(dark)
 
 
