@@ -211,3 +211,9 @@ def test_settings_that_shape_the_map_are_followed(live, shot):
     scene.virtual_reflections.resolution = "1024"
     assert live.flush(scene, full=True).done == ["VR Map Ball"]
     assert tuple(image.size) == (1024, 512)
+    # The artist's own sky (Surroundings Custom): dragging its Sky Brightness rebuilds
+    scene.virtual_reflections.surroundings = "CUSTOM"
+    assert live.pending() == {"Ball"}
+    assert live.flush(scene, full=True).done == ["VR Map Ball"]
+    scene.virtual_reflections.sky_brightness = 3.0
+    assert live.pending() == {"Ball"}
