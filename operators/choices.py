@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import bpy
 
 from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
-from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
+from ..virtual_reflections.params import SKY_GAINS
 
 ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
 
@@ -46,7 +46,6 @@ METHOD_ITEMS = (
         "onto a cube (neighbouring objects show on the sides facing them)",
     ),
 )
-MAX_SKY_BRIGHTNESS = MAX_SKY_GAIN  # Surroundings Custom's Sky Brightness: at most the engine's
 SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.params.SKY_GAINS
     (
         "AUTO",

@@ -20,12 +20,11 @@ from ..operators.choices import (
     COMBINE_ITEMS,
     FRONT_ITEMS,
     MAP_STORAGE_ITEMS,
-    MAX_SKY_BRIGHTNESS,
     METHOD_ITEMS,
     RESOLUTION_ITEMS,
-    SKY_GAINS,
     SURROUNDINGS_ITEMS,
 )
+from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
 
 def _shaping_changed(settings, context):
@@ -83,7 +82,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         name="Sky Brightness",
         default=SKY_GAINS["auto"],
         min=0.0,
-        max=MAX_SKY_BRIGHTNESS,
+        max=MAX_SKY_GAIN,  # the engine's Params.sky_gain bound
         soft_max=8.0,
         step=10,
         precision=2,
