@@ -183,6 +183,15 @@ def parser() -> argparse.ArgumentParser:
         "custom (the shot's Sky Brightness, or --sky-brightness); default: the shot's setting",
     )
     p.add_argument(
+        "--contact-shadow",
+        type=float,
+        default=None,
+        metavar="K",
+        help="for --method ground, how much the objects darken the ground they reflect around "
+        "them: 1 the share of the sky they hide, 0 none (a plate that already shows their "
+        "shadow); default: the shot's setting",
+    )
+    p.add_argument(
         "--sky-brightness",
         type=float,
         default=None,

@@ -214,6 +214,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
             "ior",
             "smoothing",
             "surroundings",
+            "contact_shadow",
         )
         if hasattr(settings, key)
     }

@@ -59,6 +59,7 @@ class BatchOptions:
     ground_object: str | None = None  # the ground for --method ground (None: the shot's)
     surroundings: str | None = None  # auto, open, enclosed, world or custom (--method ground)
     sky_brightness: float | None = None  # Surroundings Custom's, 0..MAX_SKY_GAIN; implies custom
+    contact_shadow: float | None = None  # the ground's contact shadow strength, 0..1
     frame: int | None = None  # one frame of the scene
     engine: str | None = None  # CYCLES or EEVEE
     samples: int | None = None  # render samples (0: the shot's)
@@ -153,6 +154,12 @@ class BatchOptions:
                     f"{self.surroundings}"
                 )
             object.__setattr__(self, "sky_brightness", float(self.sky_brightness))
+        if self.contact_shadow is not None:
+            if not (_is_number(self.contact_shadow) and 0.0 <= self.contact_shadow <= 1.0):
+                raise ValueError(
+                    f"--contact-shadow: expected a number from 0 to 1, not {self.contact_shadow!r}"
+                )
+            object.__setattr__(self, "contact_shadow", float(self.contact_shadow))
         if self.smoothing is not None:
             if not (_is_number(self.smoothing) and 0.0 <= self.smoothing <= MAX_SMOOTHING):
                 raise ValueError(

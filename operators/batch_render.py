@@ -71,6 +71,8 @@ def configure(scene, options: BatchOptions):
         settings.ground_object = ground
     if options.surroundings:
         settings.surroundings = options.surroundings.upper()
+    if options.contact_shadow is not None:
+        settings.contact_shadow = options.contact_shadow
     if options.sky_brightness is not None:  # the artist's own sky: Surroundings Custom
         settings.surroundings = "CUSTOM"
         settings.sky_brightness = options.sky_brightness

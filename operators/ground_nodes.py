@@ -27,7 +27,8 @@ ellipsoid in its bounding box (a sphere's is exact) under an even sky:
     d = box centre in world space - G,  cos = d.z / |d|
     F = min(1, max(cos, 0) / |q|^2)       a sphere's form factor, (r / |d|)^2 cos, with
                                           r = |d| / |q| the ellipsoid's radius toward G
-    ground x (1 - F)
+    ground x (1 - k F)                    k: the artist's Contact Shadow (1: the model; 0: off,
+                                          for a plate that already shows the object's shadow)
 
 Taken in the object's space, it follows the object at render time as the lookup does.
 """
@@ -38,6 +39,7 @@ from .nodes import find_or_new_group, link_or_set, math_node, new_node, vector_m
 
 GROUND_GROUP = "VR Ground"
 OCCLUSION_GROUP = "VR Ground Occlusion"
+SHADOW_NODE = "VR Contact Shadow"  # the Value node holding GroundLookup.shadow
 MARGIN = 0.25  # plate heights past the border over which the ground fades (as ground.py)
 _VERSION = 1
 
@@ -50,7 +52,8 @@ class GroundLookup:
     height (Z); focal: (fx / W, fy / H) and centre: (cx / W, 1 - cy / H), the camera's
     intrinsics over the plate's size W x H in texture coordinates (v up; docs/conventions.md);
     aspect: W / H; frames: for an image sequence or movie plate, (frame_duration,
-    frame_start, frame_offset, cyclic) of its image user, else None.
+    frame_start, frame_offset, cyclic) of its image user, else None; shadow: the contact
+    shadow's strength, 0..1 (the module's k).
     """
 
     plate: object
@@ -59,10 +62,11 @@ class GroundLookup:
     centre: tuple
     aspect: float
     frames: tuple | None = None
+    shadow: float = 1.0
 
     def signature(self) -> str:
         """A string that changes when anything the node tree holds changes."""
-        values = (self.height, *self.focal, *self.centre, self.aspect)
+        values = (self.height, *self.focal, *self.centre, self.aspect, self.shadow)
         rounded = ",".join(f"{v:.6g}" for v in values)
         return f"{self.plate.name}|{rounded}|{self.frames}|occlusion"
 
@@ -284,6 +288,9 @@ def mix_ground(nodes, links, position, direction, colour, ground, location, boxe
         user.use_cyclic, user.use_auto_refresh = cyclic, True
     links.new(lookup.outputs["UV"], plate.inputs["Vector"])
     seen = plate.outputs["Color"]
+    if boxes:
+        strength = new_node(nodes, "ShaderNodeValue", SHADOW_NODE, (x, y - 200))
+        strength.outputs[0].default_value = ground.shadow
     for k, box in enumerate(boxes):
         at = (x + 200, y - 300 - 250 * k)
         shade = new_node(nodes, "ShaderNodeGroup", OCCLUSION_GROUP, at)
@@ -293,10 +300,18 @@ def mix_ground(nodes, links, position, direction, colour, ground, location, boxe
         shade.inputs["Height"].default_value = ground.height
         for name, value in zip(("Box Centre", "Box Half Size"), box):
             link_or_set(links, shade.inputs[name], value)
-        seen = vector_math_node(
-            nodes, links, "SCALE", "Ground Shaded", (x + 350, at[1] + 150), seen,
-            shade.outputs["Sky"],
+        # 1 - k (1 - Sky): the hidden share times the artist's strength
+        hidden = math_node(
+            nodes, links, "SUBTRACT", "Hidden", (x + 350, at[1]), 1.0, shade.outputs["Sky"]
+        )
+        hidden = math_node(
+            nodes, links, "MULTIPLY", "Hidden x Strength", (x + 500, at[1]), hidden,
+            strength.outputs[0],
         )  # fmt: skip
+        left = math_node(nodes, links, "SUBTRACT", "Sky Left", (x + 650, at[1]), 1.0, hidden)
+        seen = vector_math_node(
+            nodes, links, "SCALE", "Ground Shaded", (x + 800, at[1] + 150), seen, left
+        )
 
     # colour + weight (plate - colour)
     step = vector_math_node(nodes, links, "SUBTRACT", "Ground - Map", (x + 400, y), seen, colour)

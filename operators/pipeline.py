@@ -253,7 +253,10 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     height = float(centre[2]) - floor
     radius = min(0.5 * float(high[2] - low[2]), height)  # their contact shadow's sphere
     ground = tuple(round(v / step) * step for v in (*origin, height, radius))
-    return dataclasses.replace(view.params, method="ground", ground=ground, up=up, sky_gain=gain)
+    shadow = round(float(scene.virtual_reflections.contact_shadow), 4)  # its strength
+    return dataclasses.replace(
+        view.params, method="ground", ground=(*ground, shadow), up=up, sky_gain=gain
+    )
 
 
 def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None:
@@ -281,6 +284,7 @@ def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None
         (cx / width, 1 - cy / height),
         width / height,
         frames,
+        round(float(scene.virtual_reflections.contact_shadow), 4),
     )
 
 

@@ -90,6 +90,7 @@ def _ground_of(group):
         user = plate.image_user
         frames = (user.frame_duration, user.frame_start, user.frame_offset, user.use_cyclic)
     value = lookup.inputs
+    strength = group.nodes.get(ground_nodes.SHADOW_NODE)
     return ground_nodes.GroundLookup(
         plate.image,
         value["Height"].default_value,
@@ -97,6 +98,7 @@ def _ground_of(group):
         tuple(value["Centre"].default_value)[:2],
         value["Aspect"].default_value,
         frames,
+        strength.outputs[0].default_value if strength is not None else 1.0,
     )
 
 

@@ -4,7 +4,7 @@
     python -m study bench [--repeat N] [--chart PNG]
     python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
     python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--split]
-        [--oracle shadow|proxies] [--out DIR]
+        [--oracle shadow|proxies] [--contact-shadow K] [--out DIR]
     python -m study sky-prior
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -117,6 +117,13 @@ def build_parser() -> argparse.ArgumentParser:
         "world: the scene's HDRI dome, as an on-set HDRI, read from the world",
     )
     p.add_argument(
+        "--contact-shadow",
+        type=float,
+        metavar="K",
+        help="with --mirror-only: the panel's Contact Shadow in every scene (0..1; default: "
+        "the add-on's, 1)",
+    )
+    p.add_argument(
         "--split",
         action="store_true",
         help="with --mirror-only: also where the default's error lies: on the pixels the sky "
@@ -171,6 +178,7 @@ def main(argv=None) -> int:
                     split=args.split,
                     surroundings=args.surroundings,
                     oracle=args.oracle,
+                    contact_shadow=args.contact_shadow,
                     width=args.width,
                     samples=args.samples,
                 )

@@ -200,6 +200,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
             if objects:  # no Ground chosen: say where it is taken from
                 depsgraph = context.evaluated_depsgraph_get()
                 _wrapped(col, floor.ground_source(context.scene, depsgraph, objects), context)
+            col.prop(settings, "contact_shadow")
         col.prop(settings, "enlarge")
         col.prop(settings, "border")
         col.prop(settings, "front")

@@ -69,6 +69,17 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         description="The object the reflective objects stand on (Camera View + Ground); empty: "
         "a shadow catcher in the scene, else a flat mesh under them, else their lowest point",
     )
+    contact_shadow: FloatProperty(
+        update=_shaping_changed,
+        name="Contact Shadow",
+        default=1.0,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+        description="How much the reflective objects darken the ground they reflect around "
+        "them (Camera View + Ground): 1, the share of the sky they hide from it; 0, none, for a "
+        "plate that already shows their shadow",
+    )
     surroundings: EnumProperty(
         update=_shaping_changed,
         name="Surroundings",

@@ -29,7 +29,9 @@ else `height`: resting on the ground) at the map's origin, a ground point at dis
 t = height / sin(b) along d (b its angle below the horizon) sees it under the form factor
 (r / t)^2 cos = (r / height)^2 sin(b)^3; the ground's taps are weighted by the sky left,
 1 - that (`sky_left`), under an even sky (the per-shading-point lookup does the same with the
-object's box, operators/ground_nodes.py).
+object's box, operators/ground_nodes.py). The artist can weaken it (`Params.ground`'s sixth
+value, the panel's Contact Shadow: the hidden share times it), for a plate that already shows
+the object's shadow.
 
 What it does not model: the object's shadow from a directional light (a sun), things standing
 on the ground (they are read where the camera sees them, as part of the ground), and the
@@ -70,11 +72,14 @@ def ground_points(directions, ground, up):
 def sky_left(sine_below, ground):
     """(...,) float32: the share of an even sky that a sphere at the map's origin (``ground``:
     Params.ground) leaves a ground point seen from there at an angle b below the horizon
-    (``sine_below`` = sin b): 1 - min(1, (r / height)^2 sin(b)^3) (the module's docstring)."""
+    (``sine_below`` = sin b): 1 - k min(1, (r / height)^2 sin(b)^3) (the module's docstring),
+    k the shadow's strength (``ground``'s sixth value, default 1)."""
     height = float(ground[3])
     radius = float(ground[4]) if len(ground) > 4 else height
+    strength = float(ground[5]) if len(ground) > 5 else 1.0
     s = np.clip(np.asarray(sine_below, np.float64), 0.0, 1.0)
-    return (1.0 - np.minimum((radius / height) ** 2 * s**3, 1.0)).astype(np.float32)
+    hidden = np.minimum((radius / height) ** 2 * s**3, 1.0)
+    return (1.0 - strength * hidden).astype(np.float32)
 
 
 def ground_pixels(directions, ground, up, intrinsics):

@@ -84,10 +84,11 @@ class Params:
                (the plate's energy), between their geometric blend (0.5, the default).
     intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
                aspect), for the camera-view and ground methods; overrides hfov.
-    ground:    (ox, oy, oz, height[, radius]) for the ground method: the object's centre in
-               the camera frame (scene units), its height above the ground plane (> 0) and
-               the radius of the sphere that stands for it in its contact shadow (ground.py;
-               > 0, default `height`: resting on the ground).
+    ground:    (ox, oy, oz, height[, radius[, shadow]]) for the ground method: the object's
+               centre in the camera frame (scene units), its height above the ground plane
+               (> 0), the radius of the sphere that stands for it in its contact shadow
+               (ground.py; > 0, default `height`: resting on the ground) and that shadow's
+               strength (0..1, default 1: the share of the sky the sphere hides; 0: none).
     up:        the world's up direction in the camera frame (the ground plane's normal), for
                the ground method: the fill of unseen directions is then by elevation above the
                world's horizon rather than by the camera's own elevation.
@@ -173,11 +174,14 @@ class Params:
         if self.up is not None and (len(self.up) != 3 or math.hypot(*self.up) < 1e-9):
             raise ValueError(f"up must be a non-zero camera-frame vector, got {self.up}")
         if self.ground is not None and (
-            len(self.ground) not in (4, 5) or min(self.ground[3:]) <= 0
+            len(self.ground) not in (4, 5, 6)
+            or min(self.ground[3:5]) <= 0
+            or not all(0.0 <= v <= 1.0 for v in self.ground[5:])
         ):
             raise ValueError(
-                "ground must be (ox, oy, oz, height[, radius]): the object in the camera frame, "
-                f"its height above the ground and its radius (> 0), got {self.ground}"
+                "ground must be (ox, oy, oz, height[, radius[, shadow]]): the object in the "
+                "camera frame, its height above the ground and its radius (> 0), its contact "
+                f"shadow's strength (0..1), got {self.ground}"
             )
         if self.method == "ground" and (self.ground is None or self.up is None):
             raise ValueError("the ground method needs the object's position (ground) and up")

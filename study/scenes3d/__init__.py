@@ -119,7 +119,14 @@ def default_cache() -> pathlib.Path:
 
 
 def run_mirror(
-    config: Config, cache=None, log=None, sky_gain=None, split=False, surroundings=None, oracle=None
+    config: Config,
+    cache=None,
+    log=None,
+    sky_gain=None,
+    split=False,
+    surroundings=None,
+    oracle=None,
+    contact_shadow=None,
 ):
     """The fast mirror loop (mirror.py) over ``config``'s scenes: returns the JSON record
     (as `run_study`'s, with the mirror only, the default method and the plate mean).
@@ -127,7 +134,8 @@ def run_mirror(
     ``split``: each scene's error split (`mirror.error_split`: one more render a scene);
     ``surroundings``: the panel's Surroundings in every scene (auto, open, enclosed, world:
     the scene's dome read from its world), or "artist": each scene's by the kind of its HDRI
-    (`run.surroundings_of`); ``oracle``: each scene's rows of that oracle (`oracles`)."""
+    (`run.surroundings_of`); ``oracle``: each scene's rows of that oracle (`oracles`);
+    ``contact_shadow``: the panel's Contact Shadow in every scene (None: the add-on's)."""
     try:
         from . import mirror
     except ImportError as exc:
@@ -152,6 +160,7 @@ def run_mirror(
             split,
             surroundings,
             oracle,
+            contact_shadow,
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -164,6 +173,7 @@ def run_mirror(
         + ("" if surroundings is None else f" --surroundings {surroundings}")
         + (" --split" if split else "")
         + ("" if oracle is None else f" --oracle {oracle}")
+        + ("" if contact_shadow is None else f" --contact-shadow {contact_shadow:g}")
         + (
             ""
             if config == CONFIGS[config.cases, config.quick]
@@ -172,6 +182,7 @@ def run_mirror(
         "sky_gain": sky_gain,
         "oracle": oracle,
         "surroundings": surroundings,
+        "contact_shadow": contact_shadow,
         "quick": config.quick,
         "mirror_only": True,
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
@@ -276,6 +287,7 @@ def run_command(
     split=False,
     surroundings=None,
     oracle=None,
+    contact_shadow=None,
     width=None,
     samples=None,
 ):
@@ -290,7 +302,8 @@ def run_command(
     the default's error lies (`mirror.split_table`), how its level statistic and the
     constant gain score (`prior_level.statistic_table`) and its colour
     (`prior_colour.colour_table`); with ``oracle`` also that oracle's rows
-    (`oracles`, `mirror.oracle_table`); ``width`` and ``samples``: its renders' width (the
+    (`oracles`, `mirror.oracle_table`); ``contact_shadow``: the panel's Contact Shadow in every
+    scene; ``width`` and ``samples``: its renders' width (the
     height 9/16 of it) and Cycles samples in place of the set's."""
     if not mirror_only and (
         cache is not None
@@ -298,12 +311,13 @@ def run_command(
         or split
         or surroundings is not None
         or oracle is not None
+        or contact_shadow is not None
         or width is not None
         or samples is not None
     ):
         raise ScenesInputError(
-            "--cache, --sky-gain, --surroundings, --split, --oracle, --width and --samples go "
-            "with --mirror-only"
+            "--cache, --sky-gain, --surroundings, --split, --oracle, --contact-shadow, --width and "
+            "--samples go with --mirror-only"
         )
     if width is not None and not 64 <= width <= 3840:
         raise ScenesInputError(f"--width: 64..3840, not {width}")
@@ -319,6 +333,10 @@ def run_command(
         )
     if sky_gain is not None and not (math.isfinite(sky_gain) and 0.0 <= sky_gain <= 100.0):
         raise ScenesInputError(f"--sky-gain: 0..100, not {sky_gain}")
+    if contact_shadow is not None and not (
+        math.isfinite(contact_shadow) and 0.0 <= contact_shadow <= 1.0
+    ):
+        raise ScenesInputError(f"--contact-shadow: 0..1, not {contact_shadow}")
     if jobs != 1:
         raise ScenesInputError(
             "--jobs: only 1 is supported (one bpy per process; Cycles already uses every core)"
@@ -352,6 +370,7 @@ def run_command(
             split=split,
             surroundings=surroundings,
             oracle=oracle,
+            contact_shadow=contact_shadow,
         )
         from . import mirror, prior_colour, prior_level  # bpy is importable: run_mirror said so
 

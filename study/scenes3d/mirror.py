@@ -58,6 +58,7 @@ def run_scene(
     split=False,
     surroundings=None,
     oracle=None,
+    contact_shadow=None,
 ):
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
     method and the plate mean. ``split``: also the default with a black sky prior (one more
@@ -66,7 +67,8 @@ def run_scene(
     `prior_level.band_levels`, and at every tint of the prior, `prior_colour.tint_scores`).
     ``surroundings``: the
     panel's Surroundings for it (`run.surroundings_of`). ``oracle``: also the rows of that
-    oracle (the package's ORACLES, `oracles`), scored as the default's."""
+    oracle (the package's ORACLES, `oracles`), scored as the default's. ``contact_shadow``:
+    the panel's Contact Shadow for it (None: the add-on's)."""
     started = time.perf_counter()
     run.new_file()
     scene, camera, subject, others, dome, material = build.build(spec, width, samples)
@@ -110,6 +112,8 @@ def run_scene(
     kind = run.surroundings_of(spec, surroundings)
     if kind is not None:
         settings.surroundings = kind
+    if contact_shadow is not None:
+        settings.contact_shadow = contact_shadow
     subject.virtual_reflections.enabled = True
     depsgraph = bpy.context.evaluated_depsgraph_get()
     t0 = time.perf_counter()
@@ -233,13 +237,24 @@ def sky_gain(addon: run.Addon, gain):
 
 
 def run_scenes(
-    specs, cache, work, width, samples, log, gain=None, split=False, surroundings=None, oracle=None
+    specs,
+    cache,
+    work,
+    width,
+    samples,
+    log,
+    gain=None,
+    split=False,
+    surroundings=None,
+    oracle=None,
+    contact_shadow=None,
 ):
     """Every scene's mirror in turn; returns (records, crops, [the default method's label]).
     ``gain``: the sky prior's gain for this run (None: the add-on's default); ``split``: each
     record's error split (`error_split`); ``surroundings``: the panel's Surroundings set in
     each scene (`run.surroundings_of`; a ``gain`` overrides it); ``oracle``: each scene's rows
-    of that oracle (`oracles`)."""
+    of that oracle (`oracles`); ``contact_shadow``: the panel's Contact Shadow in each scene
+    (None: the add-on's)."""
     addon = run.Addon()
     records, crops = [], {}
     try:
@@ -257,6 +272,7 @@ def run_scenes(
                     split,
                     surroundings,
                     oracle,
+                    contact_shadow,
                 )
                 records.append(record)
                 crops[spec.name] = scene_crops

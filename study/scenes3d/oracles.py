@@ -50,16 +50,15 @@ def labels(label: str, oracle: str) -> tuple:
 
 
 @contextlib.contextmanager
-def no_contact_shadow(addon: run.Addon):
-    """While inside: Generate wires no contact shadow (every object's box is empty, which
-    hides nothing: `ground_nodes.occluder`)."""
-    nodes = importlib.import_module(f"{addon.module.__name__}.operators.ground_nodes")
-    original = nodes.occluder
-    nodes.occluder = lambda obj: ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+def no_contact_shadow(scene):
+    """While inside: the panel's Contact Shadow off (0) in ``scene``."""
+    settings = scene.virtual_reflections
+    before = settings.contact_shadow
+    settings.contact_shadow = 0.0
     try:
         yield
     finally:
-        nodes.occluder = original
+        settings.contact_shadow = before
 
 
 def render_rows(oracle, scene, subject, others, addon, folder: pathlib.Path, work, name, border):
@@ -95,7 +94,7 @@ def _shadow_rows(scene, subject, others, addon, folder, path, border):
         run.write_png(png, shadowed)
     settings.plate_image = bpy.data.images.load(str(png))
     try:
-        with no_contact_shadow(addon):
+        with no_contact_shadow(scene):
             report = addon.generate.generate(
                 scene, bpy.context.evaluated_depsgraph_get(), [subject]
             )

@@ -221,6 +221,34 @@ def test_the_ground_around_the_object_is_darkened_by_the_sky_it_hides(addon, tmp
     assert np.abs(seen[far] - 1).mean() < 0.03
 
 
+@pytest.mark.parametrize("strength", [0.5, 0.0])
+def test_the_contact_shadow_follows_the_artists_strength(addon, tmp_path, strength):
+    """Contact Shadow k (the panel's, --contact-shadow): each pixel reflecting the plain grey
+    ground shows grey x (1 - k F); 0 leaves the plate's ground as it is (a plate that already
+    shows the object's shadow). The strength is held in the material and read back by the
+    ray-traced pass."""
+    grey = 0.5
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
+    )
+    scene, ball = bpy.context.scene, bpy.context.active_object
+    scene.virtual_reflections.contact_shadow = strength
+    make_shot_on(scene, ball, colour=lambda x, y: np.full((*np.shape(x), 3), grey))
+    group = ball.get(addon_part("operators.shading").RECORD)["group"]
+    held = group.nodes[addon_part("operators.ground_nodes").SHADOW_NODE]
+    assert held.outputs[0].default_value == pytest.approx(strength)
+    rgba = render(scene, tmp_path)
+    hit, surface, _, down = traced(scene)
+    inside = rgba[..., 3] > 0.999
+    to_centre = CENTRE - surface
+    d = np.linalg.norm(to_centre, axis=-1)
+    hidden = np.clip((RADIUS / d) ** 2 * np.maximum(to_centre[..., 2], 0) / d, 0, 1)
+    seen = rgba[..., :3].mean(-1) / grey
+    near = hit & inside & down & (hidden > 0.25)
+    assert near.sum() > 40, near.sum()
+    assert np.abs(seen[near] - (1 - strength * hidden[near])).mean() < 0.05
+
+
 def test_the_replace_map_is_the_same_for_every_pose(addon):
     """In the Replace look the map holds no ground (the material reads it): its Params, the
     lookup table's key, do not change when the ball moves; in the World look they do."""

@@ -217,3 +217,6 @@ def test_settings_that_shape_the_map_are_followed(live, shot):
     assert live.flush(scene, full=True).done == ["VR Map Ball"]
     scene.virtual_reflections.sky_brightness = 3.0
     assert live.pending() == {"Ball"}
+    assert live.flush(scene, full=True).done == ["VR Map Ball"]
+    scene.virtual_reflections.contact_shadow = 0.5  # the ground the objects darken
+    assert live.pending() == {"Ball"}

@@ -21,9 +21,21 @@ def test_the_sky_left_is_the_form_factor_of_a_sphere():
     floating = (0.0, 0.0, 5.0, 1.0, 0.5)  # half as large as high: a quarter of the share
     assert sky_left(1.0, floating) == pytest.approx(0.75)
     assert sky_left(-0.3, resting) == pytest.approx(1.0)  # up: no ground
+    # the artist's Contact Shadow: the hidden share times its strength
+    assert sky_left(1.0, (*resting, 0.5, 0.4)) == pytest.approx(0.6)
+    assert sky_left(1.0, (*floating, 0.0)) == pytest.approx(1.0)  # off: the plate as it is
 
 
-@pytest.mark.parametrize("ground", [(0.0, -1.1, 5.0, 0.5), (0.3, -0.8, 6.0, 0.8, 0.4)])
+def test_the_shadows_strength_is_checked():
+    for strength in (-0.1, 1.5):
+        with pytest.raises(ValueError, match="shadow's strength"):
+            Params(method="ground", hfov=70.0, ground=(0, 0, 5, 0.5, 0.5, strength), up=(0, 1, 0))
+
+
+@pytest.mark.parametrize(
+    "ground",
+    [(0.0, -1.1, 5.0, 0.5), (0.3, -0.8, 6.0, 0.8, 0.4), (0.0, -1.1, 5.0, 0.5, 0.5, 0.5)],
+)
 def test_a_plain_ground_is_darkened_around_the_object(ground):
     """A plate of one grey: each map texel whose ground point is well inside the plate reads
     grey x the sky left at its angle below the horizon; straight down is dark, the horizon

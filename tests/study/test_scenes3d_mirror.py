@@ -310,3 +310,27 @@ def test_cache_and_sky_gain_need_mirror_only_in_one_line():
             timeout=60,
         )
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_the_contact_shadow_option_sets_the_panels_strength(runs, cache):
+    """--contact-shadow 0: the panel's Contact Shadow off in every scene; the subject's lowest
+    part then reflects the plate's ground as it is, so the method's scores change and nothing
+    else does; the record's command says so; out of 0..1 it is refused."""
+    from study.scenes3d import ScenesInputError, run_command
+
+    first = runs[0]
+    off, _ = run_command(
+        quick=True, mirror_only=True, cache=cache, contact_shadow=0.0, log=lambda _: None
+    )
+    assert off["command"].endswith("--mirror-only --contact-shadow 0")
+    assert off["contact_shadow"] == 0.0
+    changed = 0
+    for a, b in zip(first["scenes"], off["scenes"]):
+        ra, rb = a["results"]["mirror"], b["results"]["mirror"]
+        assert ra["Plate mean"] == rb["Plate mean"]
+        changed += abs(ra[LABEL]["psnr"] - rb[LABEL]["psnr"]) > 0.01
+    assert changed >= 1
+    with pytest.raises(ScenesInputError, match="--contact-shadow: 0..1"):
+        run_command(quick=True, mirror_only=True, cache=cache, contact_shadow=1.5)
+    with pytest.raises(ScenesInputError, match="go with --mirror-only"):
+        run_command(quick=True, contact_shadow=0.5)
