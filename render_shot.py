@@ -124,6 +124,17 @@ def _unit(text):
     return value
 
 
+def _colour(text):
+    """R,G,B (three numbers, checked by BatchOptions)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        return tuple(float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected R,G,B (three numbers), not {text!r}") from None
+
+
 def parse(argv):
     """The command line -> an argparse namespace whose attributes are BatchOptions' fields
     (`batch_options` makes it one). Needs no bpy."""
@@ -198,6 +209,14 @@ def parser() -> argparse.ArgumentParser:
         metavar="G",
         help="Surroundings custom: the unseen sky is G times the ground's brightness in the "
         "plate (0..100; auto takes 1.6, open 3.6, enclosed 0.7); default: the shot's setting",
+    )
+    p.add_argument(
+        "--sky-tint",
+        type=_colour,
+        default=None,
+        metavar="R,G,B",
+        help="Surroundings custom: the unseen sky's colour, its brightness taken out (linear, "
+        "0..1 each, e.g. 0.6,0.75,1 for a blue sky); default: the shot's setting",
     )
     p.add_argument("--frame", type=int, default=None, help="the frame (default: the shot's)")
     p.add_argument(

@@ -218,8 +218,9 @@ def _run_inputs(scene, options, objects, size, use_passes):
         )
         if hasattr(settings, key)
     }
-    if reflections.get("surroundings") == "CUSTOM":  # only then does it shape the maps
+    if reflections.get("surroundings") == "CUSTOM":  # only then do they shape the maps
         reflections["sky_brightness"] = settings.sky_brightness
+        reflections["sky_tint"] = [round(v, 6) for v in settings.sky_tint]
     reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
     reflections["ground_object"] = ground.name if ground is not None else None
     reflections["objects"] = sorted(o.name for o in objects)

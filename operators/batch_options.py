@@ -59,6 +59,7 @@ class BatchOptions:
     ground_object: str | None = None  # the ground for --method ground (None: the shot's)
     surroundings: str | None = None  # auto, open, enclosed, world or custom (--method ground)
     sky_brightness: float | None = None  # Surroundings Custom's, 0..MAX_SKY_GAIN; implies custom
+    sky_tint: tuple | None = None  # Surroundings Custom's sky colour (R, G, B 0..1); implies custom
     contact_shadow: float | None = None  # the ground's contact shadow strength, 0..1
     frame: int | None = None  # one frame of the scene
     engine: str | None = None  # CYCLES or EEVEE
@@ -148,12 +149,25 @@ class BatchOptions:
                     f"--sky-brightness: expected a number from 0 to {MAX_SKY_GAIN:g}, "
                     f"not {self.sky_brightness!r}"
                 )
-            if self.surroundings not in (None, "custom"):
-                raise ValueError(
-                    f"--sky-brightness sets Surroundings Custom: not with --surroundings "
-                    f"{self.surroundings}"
-                )
             object.__setattr__(self, "sky_brightness", float(self.sky_brightness))
+        if self.sky_tint is not None:
+            tint = self.sky_tint
+            if (
+                isinstance(tint, str)
+                or len(tuple(tint)) != 3
+                or not all(_is_number(v) and 0.0 <= v <= 1.0 for v in tint)
+                or max(tint) <= 0.0
+            ):
+                raise ValueError(
+                    f"--sky-tint: expected R,G,B from 0 to 1, not all 0, not {self.sky_tint!r}"
+                )
+            object.__setattr__(self, "sky_tint", tuple(float(v) for v in tint))
+        for key in ("sky_brightness", "sky_tint"):
+            if getattr(self, key) is not None and self.surroundings not in (None, "custom"):
+                raise ValueError(
+                    f"--{key.replace('_', '-')} sets Surroundings Custom: not with "
+                    f"--surroundings {self.surroundings}"
+                )
         if self.contact_shadow is not None:
             if not (_is_number(self.contact_shadow) and 0.0 <= self.contact_shadow <= 1.0):
                 raise ValueError(

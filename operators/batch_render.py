@@ -76,6 +76,9 @@ def configure(scene, options: BatchOptions):
     if options.sky_brightness is not None:  # the artist's own sky: Surroundings Custom
         settings.surroundings = "CUSTOM"
         settings.sky_brightness = options.sky_brightness
+    if options.sky_tint is not None:
+        settings.surroundings = "CUSTOM"
+        settings.sky_tint = options.sky_tint
     if options.surroundings == "world":  # asked for by name: a world it cannot read is an error
         try:
             world_probe.environment_node(world_probe.user_world(scene))

@@ -93,6 +93,7 @@ def params(settings, intrinsics=None) -> Params:
         method="camera" if camera else "paper",
         intrinsics=tuple(intrinsics) if camera else None,
         sky_gain=scene_sky_gain(settings),
+        sky_tint=scene_sky_tint(settings),
     )
 
 
@@ -103,6 +104,15 @@ def scene_sky_gain(settings, roughness: float = 0.0) -> float:
     kind = settings.surroundings.lower()
     custom = settings.sky_brightness if kind == "custom" else None
     return sky_gain_for(kind, roughness, custom)
+
+
+def scene_sky_tint(settings) -> tuple:
+    """The sky prior's colour the scene's ``settings`` ask for (Params.sky_tint): with
+    Surroundings Custom the artist's Sky Tint (a black one is taken as neutral), else neutral."""
+    tint = tuple(round(float(v), 4) for v in settings.sky_tint)
+    if settings.surroundings != "CUSTOM" or max(tint) <= 0:
+        return (1.0, 1.0, 1.0)
+    return tint
 
 
 @dataclass(frozen=True)

@@ -35,12 +35,13 @@ def _wrapped(layout, text, context, icon="NONE"):
 def _draw_surroundings(col, settings, context):
     """What stands around the shot (Camera View + Ground): in the main panel, as what sets the
     unseen sky's brightness matters more than any other setting (docs/scenes3d.md, "Surroundings
-    named by the artist"); Custom's Sky Brightness; the World HDRI's source; under Auto, a
-    hint when the world holds an HDRI (World HDRI would read it) or else when the camera sees
-    no sky."""
+    named by the artist"); Custom's Sky Brightness and Sky Tint; the World HDRI's source;
+    under Auto, a hint when the world holds an HDRI (World HDRI would read it) or else when the
+    camera sees no sky."""
     col.prop(settings, "surroundings")
-    if settings.surroundings == "CUSTOM":  # the artist's own brightness for the unseen sky
+    if settings.surroundings == "CUSTOM":  # the artist's own sky: its brightness and colour
         col.prop(settings, "sky_brightness")
+        col.prop(settings, "sky_tint")
     if settings.surroundings not in ("WORLD", "AUTO"):
         return
     world = world_probe.user_world(context.scene)

@@ -102,6 +102,18 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         f"{SKY_GAINS['auto']:g}, Open Sky {SKY_GAINS['open']:g}, Enclosed "
         f"{SKY_GAINS['enclosed']:g}); raise it until the chrome's top matches the sky you know",
     )
+    sky_tint: FloatVectorProperty(
+        update=_shaping_changed,
+        name="Sky Tint",
+        subtype="COLOR",
+        size=3,
+        default=(1.0, 1.0, 1.0),
+        min=0.0,
+        max=1.0,
+        description="Surroundings Custom: the unseen sky's colour (its brightness is Sky "
+        "Brightness): white, neutral grey as under Auto; a blue for an open sky, an orange "
+        "for a sunset",
+    )
     front: EnumProperty(
         name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed
     )

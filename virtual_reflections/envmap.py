@@ -98,6 +98,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             energy=fill.energy,
             sky=fill.sky,
             sky_gain=fill.sky_gain,
+            sky_tint=fill.sky_tint,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
     if table.fill_texels is not None:  # the fill everywhere, the groups written over it
@@ -143,9 +144,14 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     if fill is None or fill.sky is None or not (fill.sky < 1).any():
         return None
     store = {} if pyramids is None else pyramids  # both gathers share one pyramid
+    neutral = (1.0, 1.0, 1.0)  # the weight is the share of a neutral prior of level 1
     without, lit = (
         apply_table(
-            dataclasses.replace(table, fill=dataclasses.replace(fill, sky_gain=g)), plate, store
+            dataclasses.replace(
+                table, fill=dataclasses.replace(fill, sky_gain=g, sky_tint=neutral)
+            ),
+            plate,
+            store,
         )
         for g in (0.0, 1.0)
     )

@@ -165,6 +165,7 @@ def fill_profile(
     energy: float = 0.0,
     sky=None,
     sky_gain: float = 1.0,
+    sky_tint=None,
 ) -> np.ndarray:
     """The fill (sides * FILL_BINS, 3) float32 of one frame, sides = len(window): per side and
     elevation bin the log-average (per channel) of the pixels `level_pixels` (h, w, 3) in its
@@ -181,7 +182,8 @@ def fill_profile(
     `sky` ((sides * FILL_BINS,) from `sky_share`): where under 1, the bin is blended toward a
     neutral sky `sky_gain` times as bright as the whole plate (its log-average brightened by
     `energy` as above); with `sky_share`, every bin above the horizon is that sky alone
-    (docs/scenes3d.md, "The unseen sky").
+    (docs/scenes3d.md, "The unseen sky"). `sky_tint` (R, G, B; None: neutral) colours that sky,
+    its luminance kept.
     """
     sides = window.shape[0]
     size = sides * FILL_BINS
@@ -225,10 +227,18 @@ def fill_profile(
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     if sky is not None and (sky < 1).any():
-        prior = np.float32(sky_gain * prior_level(pixels, bins, energy))
+        prior = np.float32(sky_gain * prior_level(pixels, bins, energy)) * tint_colour(sky_tint)
         share = sky[:, None]
         out[:] = share * out + (1.0 - share) * prior
     return out
+
+
+def tint_colour(tint) -> np.ndarray:
+    """(3,) float32: the colour ``tint`` (R, G, B, not black; None: neutral) with luminance 1."""
+    if tint is None:
+        return np.ones(3, np.float32)
+    colour = np.asarray(tint, np.float32)
+    return colour / np.float32(max(float(colour @ REC709_LUMA), 1e-30))
 
 
 def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0) -> float:

@@ -99,6 +99,8 @@ class Params:
                gain that best predicts, in display values, the upper hemisphere of six of
                Blender's HDRIs from their lower one (docs/ground.md); SKY_GAINS holds it and
                the gains for open and enclosed surroundings.
+    sky_tint:  the sky prior's colour (linear R, G, B >= 0), its luminance taken out: (1, 1, 1)
+               is neutral (the add-on's, but for the artist's Surroundings Custom).
     """
 
     enlarge: float = 0.075
@@ -118,6 +120,7 @@ class Params:
     ground: tuple | None = None
     up: tuple | None = None
     sky_gain: float = SKY_GAINS["auto"]
+    sky_tint: tuple = (1.0, 1.0, 1.0)
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -164,6 +167,10 @@ class Params:
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
             raise ValueError(f"sky_gain must be 0..{MAX_SKY_GAIN:g}, got {self.sky_gain}")
+        tint = tuple(float(v) for v in self.sky_tint)
+        object.__setattr__(self, "sky_tint", tint)
+        if len(tint) != 3 or not all(math.isfinite(v) and v >= 0 for v in tint) or max(tint) <= 0:
+            raise ValueError(f"sky_tint must be a colour (R, G, B >= 0, not black), got {tint}")
         for name in ("ground", "up"):
             value = getattr(self, name)
             if value is not None:

@@ -108,6 +108,7 @@ class Fill:
     counts: np.ndarray
     sky: np.ndarray | None = None  # sky_share, with a world horizon (Params.up)
     sky_gain: float = 1.0
+    sky_tint: tuple = (1.0, 1.0, 1.0)  # Params.sky_tint
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> np.ndarray:
@@ -378,6 +379,7 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
         counts,
         sky_share(sides) if params.up is not None else None,
         params.sky_gain,
+        params.sky_tint,
     )
     _frozen(bins, window, counts)
     # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)

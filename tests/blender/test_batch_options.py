@@ -206,3 +206,14 @@ def test_bad_values_are_refused_up_front(batch_options, fields, message):
 
 def test_resolution_auto_can_be_passed(batch_options):
     assert batch_options.BatchOptions(plate="p", out="o", resolution="AUTO").resolution == "AUTO"
+
+
+def test_the_sky_tint_is_three_numbers(render_shot, capsys):
+    """--sky-tint R,G,B: three numbers, else one line and exit code 2 before Blender."""
+    assert render_shot.parse([*BASE, "--sky-tint", "0.5,0.7,1"]).sky_tint == (0.5, 0.7, 1.0)
+    for bad in ("blue", "0.5,0.7"):
+        with pytest.raises(SystemExit) as stop:
+            render_shot.parse([*BASE, "--sky-tint", bad])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert "expected R,G,B (three numbers)" in err and "\n" not in err

@@ -152,10 +152,19 @@ def test_custom_surroundings_take_the_artists_sky_brightness(addon):
         4.0 * params.sky_gain_for("auto", 0.35) / params.SKY_GAINS["auto"]
     )
     assert params.sky_gain_for("custom", 1.0, 100.0) == params.MAX_SKY_GAIN  # held in range
+    # Sky Tint: the unseen sky takes its colour at the same luminance
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    settings.sky_tint = (1.0, 0.6, 0.3)  # a sunset
+    orange, ground = up_and_ahead(scene, ball)
+    np.testing.assert_allclose(ground, GROUND, atol=0.03)
+    assert float(orange @ luma) == pytest.approx(float(sky[4.0] @ luma), rel=0.03)
+    np.testing.assert_allclose(orange / orange[0], (1.0, 0.6, 0.3), rtol=0.05)
     drawn = draw_main_panel(scene)
-    assert "sky_brightness" in drawn.props
-    settings.surroundings = "OPEN"
-    assert "sky_brightness" not in draw_main_panel(scene).props
+    assert {"sky_brightness", "sky_tint"} <= set(drawn.props)
+    settings.surroundings = "OPEN"  # a named kind: neutral, whatever the tint
+    assert not {"sky_brightness", "sky_tint"} & set(draw_main_panel(scene).props)
+    named, _ = up_and_ahead(scene, ball)
+    assert np.ptp(named) < 0.02 * named.mean()
 
 
 def test_the_batch_option_sets_the_sky_brightness(addon):
@@ -174,6 +183,13 @@ def test_the_batch_option_sets_the_sky_brightness(addon):
     assert (settings.surroundings, round(settings.sky_brightness, 4)) == ("CUSTOM", 3.0)
     with pytest.raises(ValueError, match="not with --surroundings open"):
         options.BatchOptions(plate="p.exr", out="o", surroundings="open", sky_brightness=2.0)
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", sky_tint=(0.5, 0.7, 1)))
+    assert tuple(round(v, 4) for v in settings.sky_tint) == (0.5, 0.7, 1.0)
+    for bad in ((0, 0, 0), (1, 2, 1), (1, 1), "blue"):
+        with pytest.raises(ValueError, match="--sky-tint: expected R,G,B from 0 to 1"):
+            options.BatchOptions(plate="p.exr", out="o", sky_tint=bad)
+    with pytest.raises(ValueError, match="--sky-tint sets Surroundings Custom"):
+        options.BatchOptions(plate="p.exr", out="o", surroundings="world", sky_tint=(1, 1, 1))
     for bad in (-1.0, 101.0, float("nan"), "bright"):
         with pytest.raises(ValueError, match="--sky-brightness: expected a number from 0 to 100"):
             options.BatchOptions(plate="p.exr", out="o", sky_brightness=bad)

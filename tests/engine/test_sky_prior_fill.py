@@ -68,6 +68,32 @@ def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
     assert sky["enclosed"].mean() < sky["auto"].mean() < sky["open"].mean()
 
 
+def test_a_tinted_sky_keeps_its_luminance_and_the_ground():
+    """`Params.sky_tint` (the artist's Surroundings Custom): straight up, the map takes the
+    tint's chromaticity at the neutral prior's luminance; the plate's ground is unchanged; a
+    black or negative tint is refused."""
+    rng = np.random.default_rng(4)
+    plate = (0.2 + 0.05 * rng.random((H, W, 3))).astype(np.float32)
+    up = up_when_pitched(30.0)
+    box = (60, 30, 100, 60)
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    tint = (0.4, 0.6, 1.0)  # a blue sky
+    maps = {}
+    for colour in ((1.0, 1.0, 1.0), tint):
+        params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_tint=colour)
+        maps[colour] = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
+    d = texel_directions("latlong", 256)
+    top = d @ np.array(up) > math.cos(math.radians(15))
+    ahead = d[..., 2] > math.cos(math.radians(3))
+    neutral, blue = maps[(1.0, 1.0, 1.0)][top].mean(0), maps[tint][top].mean(0)
+    assert float(blue @ luma) == pytest.approx(float(neutral @ luma), rel=0.01)
+    np.testing.assert_allclose(blue / blue[2], np.array(tint) / tint[2], rtol=0.02)
+    np.testing.assert_allclose(maps[tint][ahead], maps[(1.0, 1.0, 1.0)][ahead], atol=1e-6)
+    for bad in ((0.0, 0.0, 0.0), (1.0, -0.1, 1.0), (1.0, 1.0)):
+        with pytest.raises(ValueError, match="sky_tint must be a colour"):
+            Params(method="camera", intrinsics=INTRINSICS, up=up, sky_tint=bad)
+
+
 def test_the_gain_for_a_rough_surface():
     """`sky_gain_for`: the mirror's gain at roughness 0 (and for a kind it does not know, or no
     roughness), the gain times the study's ratio at each knot, between knots between their
