@@ -27,6 +27,12 @@ FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
 MAX_SMOOTHING = 0.95
 RANGES = {"scale": (1, 10000), "samples": (1, 1 << 24), "max_passes": (1, 100)}
+# Numbers of a closed range (None: not given, the shot's own setting).
+FLOAT_RANGES = {
+    "sky_brightness": (0.0, MAX_SKY_GAIN),
+    "contact_shadow": (0.0, 1.0),
+    "smoothing": (0.0, MAX_SMOOTHING),
+}
 
 
 def _words(choices):
@@ -143,13 +149,16 @@ class BatchOptions:
             if not (_is_number(self.tolerance) and self.tolerance >= 0):
                 raise ValueError(f"--tolerance must be a number >= 0, not {self.tolerance!r}")
             object.__setattr__(self, "tolerance", float(self.tolerance))
-        if self.sky_brightness is not None:
-            if not (_is_number(self.sky_brightness) and 0.0 <= self.sky_brightness <= MAX_SKY_GAIN):
+        for key, (low, high) in FLOAT_RANGES.items():
+            value = getattr(self, key)
+            if value is None:
+                continue
+            if not (_is_number(value) and low <= value <= high):
                 raise ValueError(
-                    f"--sky-brightness: expected a number from 0 to {MAX_SKY_GAIN:g}, "
-                    f"not {self.sky_brightness!r}"
+                    f"--{key.replace('_', '-')}: expected a number from {low:g} to {high:g}, "
+                    f"not {value!r}"
                 )
-            object.__setattr__(self, "sky_brightness", float(self.sky_brightness))
+            object.__setattr__(self, key, float(value))
         if self.sky_tint is not None:
             tint = self.sky_tint
             if (
@@ -168,19 +177,6 @@ class BatchOptions:
                     f"--{key.replace('_', '-')} sets Surroundings Custom: not with "
                     f"--surroundings {self.surroundings}"
                 )
-        if self.contact_shadow is not None:
-            if not (_is_number(self.contact_shadow) and 0.0 <= self.contact_shadow <= 1.0):
-                raise ValueError(
-                    f"--contact-shadow: expected a number from 0 to 1, not {self.contact_shadow!r}"
-                )
-            object.__setattr__(self, "contact_shadow", float(self.contact_shadow))
-        if self.smoothing is not None:
-            if not (_is_number(self.smoothing) and 0.0 <= self.smoothing <= MAX_SMOOTHING):
-                raise ValueError(
-                    f"--smoothing: expected a number from 0 to {MAX_SMOOTHING}, "
-                    f"not {self.smoothing!r}"
-                )
-            object.__setattr__(self, "smoothing", float(self.smoothing))
         for key in ("no_reflections", "overwrite"):
             if not isinstance(getattr(self, key), bool):
                 raise ValueError(

@@ -199,22 +199,41 @@ def test_the_map_seen_from_the_centre_gets_the_contact_wrong(addon, tmp_path):
     assert (red_seen == expected)[parallax].mean() < 0.5
 
 
+GREY = 0.5
+
+
+def grey_ground(strength=None):
+    """A shot on a plain GREY ground (the panel's Contact Shadow ``strength``, None: as is)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
+    )
+    scene, ball = bpy.context.scene, bpy.context.active_object
+    if strength is not None:
+        scene.virtual_reflections.contact_shadow = strength
+    make_shot_on(scene, ball, colour=lambda x, y: np.full((*np.shape(x), 3), GREY))
+    return scene, ball
+
+
+def ground_seen(scene, tmp_path):
+    """Per pixel of the render: (what it shows of the grey ground, 1 where lit as the plate,
+    the share F of an even sky the ball hides from the ground point it reflects, traced
+    analytically, and the pixels well inside the ball that reflect the ground)."""
+    rgba = render(scene, tmp_path)
+    hit, surface, _, down = traced(scene)
+    to_centre = CENTRE - surface
+    d = np.linalg.norm(to_centre, axis=-1)
+    hidden = np.clip((RADIUS / d) ** 2 * np.maximum(to_centre[..., 2], 0) / d, 0, 1)
+    return rgba[..., :3].mean(-1) / GREY, hidden, hit & (rgba[..., 3] > 0.999) & down
+
+
 def test_the_ground_around_the_object_is_darkened_by_the_sky_it_hides(addon, tmp_path):
     """The plate was shot without the ball; in the render the ball hides part of the sky from
     the ground around it. On a plain grey ground each pixel reflecting the ground must show
     grey x (1 - F), F = (r / d)^2 cos: the share of an even sky a sphere of radius r hides
     from a ground point at distance d, at angle acos(cos) from straight up."""
-    grey = 0.5
-    scene, _, _ = make_shot(colour=lambda x, y: np.full((*np.shape(x), 3), grey))
-    rgba = render(scene, tmp_path)
-    hit, surface, _, down = traced(scene)
-    inside = rgba[..., 3] > 0.999
-    to_centre = CENTRE - surface
-    d = np.linalg.norm(to_centre, axis=-1)
-    hidden = np.clip((RADIUS / d) ** 2 * np.maximum(to_centre[..., 2], 0) / d, 0, 1)
-    seen = rgba[..., :3].mean(-1) / grey
-    near = hit & inside & down & (hidden > 0.25)
-    far = hit & inside & down & (hidden < 0.02)
+    scene, _ = grey_ground()
+    seen, hidden, ground = ground_seen(scene, tmp_path)
+    near, far = ground & (hidden > 0.25), ground & (hidden < 0.02)
     assert near.sum() > 40 and far.sum() > 40, (near.sum(), far.sum())
     assert np.abs(seen[near] - (1 - hidden[near])).mean() < 0.05
     assert seen[near].mean() < 0.7  # a real darkening, not a rounding
@@ -227,24 +246,12 @@ def test_the_contact_shadow_follows_the_artists_strength(addon, tmp_path, streng
     ground shows grey x (1 - k F); 0 leaves the plate's ground as it is (a plate that already
     shows the object's shadow). The strength is held in the material and read back by the
     ray-traced pass."""
-    grey = 0.5
-    bpy.ops.mesh.primitive_uv_sphere_add(
-        segments=96, ring_count=48, radius=RADIUS, location=tuple(CENTRE)
-    )
-    scene, ball = bpy.context.scene, bpy.context.active_object
-    scene.virtual_reflections.contact_shadow = strength
-    make_shot_on(scene, ball, colour=lambda x, y: np.full((*np.shape(x), 3), grey))
+    scene, ball = grey_ground(strength)
     group = ball.get(addon_part("operators.shading").RECORD)["group"]
     held = group.nodes[addon_part("operators.ground_nodes").SHADOW_NODE]
     assert held.outputs[0].default_value == pytest.approx(strength)
-    rgba = render(scene, tmp_path)
-    hit, surface, _, down = traced(scene)
-    inside = rgba[..., 3] > 0.999
-    to_centre = CENTRE - surface
-    d = np.linalg.norm(to_centre, axis=-1)
-    hidden = np.clip((RADIUS / d) ** 2 * np.maximum(to_centre[..., 2], 0) / d, 0, 1)
-    seen = rgba[..., :3].mean(-1) / grey
-    near = hit & inside & down & (hidden > 0.25)
+    seen, hidden, ground = ground_seen(scene, tmp_path)
+    near = ground & (hidden > 0.25)
     assert near.sum() > 40, near.sum()
     assert np.abs(seen[near] - (1 - strength * hidden[near])).mean() < 0.05
 
