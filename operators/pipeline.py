@@ -106,6 +106,12 @@ def scene_sky_gain(settings, roughness: float = 0.0) -> float:
     return sky_gain_for(kind, roughness, custom)
 
 
+def contact_shadow(settings) -> float:
+    """The contact shadow's strength the scene's ``settings`` ask for (0..1), rounded so that
+    a slider's float noise builds no new table or node tree."""
+    return round(float(settings.contact_shadow), 4)
+
+
 def scene_sky_tint(settings) -> tuple:
     """The sky prior's colour the scene's ``settings`` ask for (Params.sky_tint): with
     Surroundings Custom the artist's Sky Tint (a black one is taken as neutral), else neutral."""
@@ -263,7 +269,7 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     height = float(centre[2]) - floor
     radius = min(0.5 * float(high[2] - low[2]), height)  # their contact shadow's sphere
     ground = tuple(round(v / step) * step for v in (*origin, height, radius))
-    shadow = round(float(scene.virtual_reflections.contact_shadow), 4)  # its strength
+    shadow = contact_shadow(scene.virtual_reflections)
     return dataclasses.replace(
         view.params, method="ground", ground=(*ground, shadow), up=up, sky_gain=gain
     )
@@ -294,7 +300,7 @@ def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None
         (cx / width, 1 - cy / height),
         width / height,
         frames,
-        round(float(scene.virtual_reflections.contact_shadow), 4),
+        contact_shadow(scene.virtual_reflections),
     )
 
 

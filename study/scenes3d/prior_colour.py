@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..evaluate.metrics import psnr, to_display
+from virtual_reflections.fill import REC709_LUMA, tint_colour
+
+from .prior_level import scaled_scores
 
 TINTS = (0.0, 0.25, 0.5)  # shares of the plate's mean colour's saturation the prior takes
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = REC709_LUMA
 
 
 def tint_factors(plate_mean, tint: float) -> np.ndarray:
@@ -24,10 +26,9 @@ def tint_factors(plate_mean, tint: float) -> np.ndarray:
     ``plate_mean`` by ``tint`` of its saturation (0: neutral, 1: its chromaticity), its
     luminance kept."""
     mean = np.maximum(np.asarray(plate_mean, np.float64), 0.0)
-    luma = float(mean @ LUMA)
-    if luma <= 0.0:  # a black plate has no colour to take
+    if float(mean @ LUMA) <= 0.0:  # a black plate has no colour to take
         return np.ones(3)
-    return (1.0 - tint) + tint * mean / luma
+    return (1.0 - tint) + tint * tint_colour(mean).astype(np.float64)
 
 
 def tint_scores(full, dark, truth, mask, crop, baseline: float, plate_mean) -> list:
@@ -35,14 +36,8 @@ def tint_scores(full, dark, truth, mask, crop, baseline: float, plate_mean) -> l
     run's gain) and ``dark`` (the prior black) with the prior tinted by each of TINTS toward
     ``plate_mean``, scored on ``mask`` within ``crop`` as `run.score` does, less ``baseline``
     (the plate mean's PSNR)."""
-    y0, y1, x0, x1 = crop
-    f, d = full[y0:y1, x0:x1], dark[y0:y1, x0:x1]
-    t, m = to_display(truth[y0:y1, x0:x1]), mask[y0:y1, x0:x1]
-    out = []
-    for tint in TINTS:
-        factors = tint_factors(plate_mean, tint).astype(f.dtype)
-        out.append(float(psnr(to_display(d + factors * (f - d)), t, m)) - baseline)
-    return out
+    factors = [tint_factors(plate_mean, tint) for tint in TINTS]
+    return scaled_scores(full, dark, truth, mask, crop, baseline, factors)
 
 
 def colour_table(data) -> str:

@@ -35,10 +35,21 @@ def scale_curve(full, dark, truth, mask, crop, baseline: float) -> list:
     gain) and ``dark`` (the prior black) with the prior's part scaled by each of SCALES,
     scored on ``mask`` within ``crop`` as `run.score` does, less ``baseline`` (the plate
     mean's PSNR)."""
+    return scaled_scores(full, dark, truth, mask, crop, baseline, SCALES)
+
+
+def scaled_scores(full, dark, truth, mask, crop, baseline: float, factors) -> list:
+    """Mirror PSNR less ``baseline`` of dark + k (full - dark) for each k of ``factors`` (a
+    number, or (3,) per channel: the prior's part is linear in each), scored on ``mask``
+    within ``crop`` as `run.score` does."""
     y0, y1, x0, x1 = crop
     f, d = full[y0:y1, x0:x1], dark[y0:y1, x0:x1]
     t, m = to_display(truth[y0:y1, x0:x1]), mask[y0:y1, x0:x1]
-    return [float(psnr(to_display(d + s * (f - d)), t, m)) - baseline for s in SCALES]
+    part = f - d
+    return [
+        float(psnr(to_display(d + np.asarray(k, part.dtype) * part), t, m)) - baseline
+        for k in factors
+    ]
 
 
 def band_levels(plate, hfov_deg: float, pitch_deg: float) -> dict:
