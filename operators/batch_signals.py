@@ -11,7 +11,7 @@ import gc
 import signal
 import sys
 
-from ..virtual_reflections.backends import hold_interrupts
+from ..virtual_reflections.interrupts import hold_interrupts, raising
 
 
 class Interrupted(KeyboardInterrupt):
@@ -27,9 +27,13 @@ class Interrupted(KeyboardInterrupt):
 _signalled = []  # signals received while a run is on
 
 
-def _on_signal(signum, frame):
+def _interrupted(signum):
     _signalled.append(signum)
-    raise Interrupted(signum)
+    return Interrupted(signum)
+
+
+# raised where the run is, or when a compiled kernel the signal arrived in returns
+_on_signal = raising(_interrupted)
 
 
 def raise_if_signalled():
@@ -52,7 +56,8 @@ def stop_on_signals():
     previous = {}
     try:
         for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, _on_signal)
+            if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup's stays ignored
+                previous[sig] = signal.signal(sig, _on_signal)
     except ValueError:  # not the main thread
         pass
     hook = sys.unraisablehook

@@ -22,6 +22,8 @@ import threading
 
 import numpy as np
 
+from .interrupts import uninterrupted
+
 _cv2 = []
 _kernels = []
 _lock = threading.Lock()
@@ -50,8 +52,9 @@ def kernels():
     way the file is imported."""
     if not _kernels:
         try:
-            module = sys.modules.get(KERNELS) or _load_kernels()
-            _start_threads()
+            with uninterrupted():  # importing Numba loads llvmlite: see interrupts.py
+                module = sys.modules.get(KERNELS) or _load_kernels()
+                _start_threads()
         except Exception:  # not installed, or broken: the other back ends, never an error
             module = None
         _kernels.append(module)
@@ -143,26 +146,8 @@ def given(array, columns: int = 0, dtype=np.float32) -> np.ndarray:
 
 def run(kernel, *args) -> None:
     """Call a compiled kernel, one at a time: Numba's default threading layer must not be
-    entered from two threads at once (it would abort the process)."""
-    with _lock:
+    entered from two threads at once (it would abort the process). A Ctrl-C in the main thread
+    waits until the kernel returns: the first call compiles or loads it, which an interrupt
+    would leave half freed (interrupts.py)."""
+    with uninterrupted(), _lock:
         kernel(*args)
-
-
-def hold_interrupts(hook, held: list):
-    """A sys.unraisablehook that keeps in `held` an interrupt raised where Python cannot pass it
-    on — a callback from C: Numba caches a kernel it compiled through one — to be raised again
-    when the work returns, and hands every other unraisable error to `hook`."""
-
-    def unraisable(info):
-        if isinstance(info.exc_value, KeyboardInterrupt):
-            held.append(info.exc_value)
-        else:
-            hook(info)
-
-    return unraisable
-
-
-def silent(info) -> None:
-    """The unraisablehook after an interrupt: the process ends where the work stopped, and
-    what that work leaves half made (a kernel being compiled) may fail in its destructor on
-    the way out; nothing of it is printed, the one line said why the run ended."""

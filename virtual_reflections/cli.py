@@ -32,9 +32,9 @@ import sys
 import time
 
 from .atomic_files import ImageError, same_file
-from .backends import hold_interrupts, silent
 from .envmap import DEFAULT_SIZE
 from .imagefiles import check_writable, read_header, read_plate, write_map
+from .interrupts import hold_interrupts, raising, silent
 from .memory import check_fits, plate_job_bytes
 from .params import METHOD_ALIASES, METHODS, Params
 
@@ -250,8 +250,10 @@ def _numbers_after_bbox(argv):
     return argv
 
 
-def _terminate(signum, frame):
-    raise Terminated()
+def _stop(signum):
+    """The exception a signal stops the run with (interrupts.raising holds it while a
+    compiled kernel loads or runs)."""
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _error(message) -> None:
@@ -260,10 +262,13 @@ def _error(message) -> None:
 
 
 def main(argv=None) -> int:
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(sig) is not signal.SIG_IGN:  # nohup's stays ignored
+                previous[sig] = signal.signal(sig, raising(_stop))
     except ValueError:  # not the main thread: leave signals alone
-        previous = None
+        pass
     hook, held = sys.unraisablehook, []
     sys.unraisablehook = hold_interrupts(hook, held)
     try:
@@ -290,6 +295,7 @@ def main(argv=None) -> int:
         return EXIT_INTERRUPTED
     finally:
         sys.unraisablehook = hook
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            if handler is not None:  # None: a handler set outside Python
+                signal.signal(sig, handler)
     return 0

@@ -3,16 +3,29 @@
 NumPy releases the GIL inside its loops over large arrays, so a few threads each working on
 a block of rows run truly in parallel. Work is split only when it is large enough to pay
 for the threads.
+
+The threads are the module's own, kept for the process's life. They are daemon threads, so
+no thread is ever left for the interpreter to wait for on its way out, and a call that is
+interrupted (Ctrl-C, SIGTERM: an exception raised in the calling thread while it waits)
+lets the blocks already running finish and drops the rest before the exception goes on:
+when `for_blocks` returns or raises, none of its work is running. (A ThreadPoolExecutor
+interrupted while it starts a thread leaves a thread the interpreter waits for at exit
+forever.)
 """
 
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+import queue
+import threading
 
 MIN_ROWS = 65536  # texels: below this, one thread is faster
 CHUNK = 32768  # texels per block when working in chunks: temporaries stay small and cached
-_pool: ThreadPoolExecutor | None = None
+
+_tasks: queue.SimpleQueue = queue.SimpleQueue()  # a call's blocks, once per helper thread
+_threads: list[threading.Thread] = []
+_start_lock = threading.Lock()
+_local = threading.local()  # .helper: this thread is one of ours
 
 
 def workers() -> int:
@@ -27,27 +40,108 @@ def workers() -> int:
     return max(1, min(cores, 8))
 
 
+class _Blocks:
+    """One call's blocks, taken in turn by the threads: how many started and finished, the
+    first error, and whether the caller stopped waiting (then no further block starts)."""
+
+    def __init__(self, fn, bounds: list[int]):
+        self.fn = fn
+        self.bounds = bounds
+        self.count = len(bounds) - 1
+        self.started = 0
+        self.finished = 0
+        self.error: BaseException | None = None
+        self.stopped = False
+        self.lock = threading.Lock()
+        self.done = threading.Event()
+
+    def work(self) -> None:
+        """Run blocks until none is left to start (a helper thread's turn)."""
+        while (i := self._take()) is not None:
+            try:
+                self.fn(self.bounds[i], self.bounds[i + 1])
+            except BaseException as exc:  # handed to the caller, which raises it
+                self._finish(exc)
+            else:
+                self._finish(None)
+
+    def stop(self) -> None:
+        """No further block starts; `done` is set once the running ones have finished."""
+        with self.lock:
+            self.stopped = True
+            self._check()
+
+    def wait_out(self) -> None:
+        """Stop, and wait for the blocks running now. A second interrupt while waiting
+        changes nothing: the first is on its way."""
+        while True:
+            try:
+                self.stop()
+                self.done.wait()
+                return
+            except KeyboardInterrupt:
+                continue
+
+    def _take(self) -> int | None:
+        with self.lock:
+            if self.stopped or self.error is not None or self.started == self.count:
+                return None
+            self.started += 1
+            return self.started - 1
+
+    def _finish(self, error: BaseException | None) -> None:
+        with self.lock:
+            self.finished += 1
+            if self.error is None:
+                self.error = error
+            self._check()
+
+    def _check(self) -> None:  # under the lock
+        ending = self.stopped or self.error is not None or self.started == self.count
+        if ending and self.finished == self.started:
+            self.done.set()
+
+
+def _serve() -> None:
+    _local.helper = True
+    while True:
+        _tasks.get().work()
+
+
+def _ensure_threads(n: int) -> None:
+    with _start_lock:
+        while len(_threads) < n:
+            thread = threading.Thread(target=_serve, name=f"vr_{len(_threads)}", daemon=True)
+            thread.start()
+            _threads.append(thread)
+
+
 def for_blocks(fn, rows: int, min_rows: int = MIN_ROWS, max_rows: int | None = None) -> None:
     """Call fn(start, stop) over consecutive blocks covering range(rows), in parallel;
     each block gets at least `min_rows` rows and, with `max_rows`, at most that many (the
     blocks then outnumber the threads, which take them in turn: a caller working on large
-    arrays keeps its temporaries small, so they are neither fresh memory nor out of cache)."""
+    arrays keeps its temporaries small, so they are neither fresh memory nor out of cache).
+    The first error a block raises is raised here, once no block runs."""
     n = min(workers(), max(1, rows // min_rows))
-    blocks = n if max_rows is None else max(n, -(-rows // max_rows))
-    if blocks == 1:
+    count = n if max_rows is None else max(n, -(-rows // max_rows))
+    if count == 1:
         fn(0, rows)
         return
-    if n == 1:
-        for i in range(blocks):
-            fn(rows * i // blocks, rows * (i + 1) // blocks)
+    if n == 1 or getattr(_local, "helper", False):  # one thread, or inside a block already
+        for i in range(count):
+            fn(rows * i // count, rows * (i + 1) // count)
         return
-    global _pool
-    if _pool is None or _pool._max_workers < n:
-        _pool = ThreadPoolExecutor(max_workers=n, thread_name_prefix="vr")
-    bounds = [rows * i // blocks for i in range(blocks + 1)]
-    futures = [_pool.submit(fn, a, b) for a, b in zip(bounds, bounds[1:])]
-    for f in futures:
-        f.result()
+    blocks = _Blocks(fn, [rows * i // count for i in range(count + 1)])
+    try:
+        _ensure_threads(n)
+        for _ in range(n):
+            _tasks.put(blocks)
+        blocks.done.wait()
+    except BaseException:  # Ctrl-C or SIGTERM while waiting: nothing of ours keeps running
+        blocks.wait_out()
+        raise
+    if blocks.error is not None:
+        raise blocks.error
 
 
 def chunks(count: int, size: int = 32768):

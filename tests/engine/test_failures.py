@@ -206,18 +206,24 @@ def test_out_of_memory_is_one_line_exit_1(plate, tmp_path, monkeypatch, capsys):
 
 
 # 13: SIGTERM and SIGKILL leave nothing behind.
-def test_sigterm_is_one_line_and_leaves_no_temp(plate, tmp_path, monkeypatch, capsys):
-    """SIGTERM arrives while the map is being written (the writer signals its own process)."""
+@pytest.mark.parametrize(
+    "sig,code,word", [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")]
+)
+def test_sigterm_is_one_line_and_leaves_no_temp(
+    plate, tmp_path, monkeypatch, capsys, sig, code, word
+):
+    """SIGTERM or Ctrl-C arrives while the map is being written (the writer signals its own
+    process)."""
     write_oiio = imagefiles._write_oiio  # noqa: SLF001 - the test wraps the writer
 
     def write_then_terminated(path, *args):
         write_oiio(path, *args)
         assert os.path.exists(path)  # the temporary file, half the job done
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), sig)
         time.sleep(5)  # the handler raises here
 
     monkeypatch.setattr(imagefiles, "_write_oiio", write_then_terminated)
-    code = cli.main(
+    result = cli.main(
         [
             "envmap",
             str(plate),
@@ -229,8 +235,8 @@ def test_sigterm_is_one_line_and_leaves_no_temp(plate, tmp_path, monkeypatch, ca
             "64",
         ]
     )
-    assert code == 143
-    assert capsys.readouterr().err.strip() == "virtual_reflections: terminated"
+    assert result == code
+    assert capsys.readouterr().err.strip() == f"virtual_reflections: {word}"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -274,7 +280,7 @@ def test_sigterm_inside_a_callback_from_c_still_ends_the_run(plate, tmp_path, mo
     end caches a kernel through one; Python cannot pass the exception on there and would print
     it and go on) is held and raised when the work returns: one line, exit code 143; and as
     the process ends, what the interrupted work left half made prints nothing."""
-    from virtual_reflections import backends
+    from virtual_reflections import interrupts
 
     def envmap_then_callback(args):
         # What Python does with an exception raised in a callback from C.
@@ -286,10 +292,10 @@ def test_sigterm_inside_a_callback_from_c_still_ends_the_run(plate, tmp_path, mo
         code = cli.main(["envmap", str(plate), "-o", str(tmp_path / "m.exr"), *map(str, BBOX)])
         err = capsys.readouterr().err
         assert code == 143 and err.strip() == "virtual_reflections: terminated", err
-        assert sys.unraisablehook is backends.silent  # the way out prints nothing more
+        assert sys.unraisablehook is interrupts.silent  # the way out prints nothing more
     finally:
         sys.unraisablehook = previous
     seen = []
-    hook = backends.hold_interrupts(seen.append, held := [])
+    hook = interrupts.hold_interrupts(seen.append, held := [])
     hook(type("Info", (), {"exc_value": RuntimeError("not an interrupt")})())
     assert not held and len(seen) == 1  # other unraisable errors are still printed
