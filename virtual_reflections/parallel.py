@@ -102,16 +102,31 @@ class _Blocks:
             self.done.set()
 
 
-def _serve() -> None:
+def _forget_threads() -> None:
+    """In a forked child (the study's and a farm's worker pools fork): only the forking
+    thread lives on, so start afresh — new threads, queue and lock, when first needed."""
+    global _tasks, _start_lock
+    _tasks = queue.SimpleQueue()
+    _start_lock = threading.Lock()
+    _threads.clear()
+
+
+if hasattr(os, "register_at_fork"):  # POSIX
+    os.register_at_fork(after_in_child=_forget_threads)
+
+
+def _serve(tasks: queue.SimpleQueue) -> None:
     _local.helper = True
     while True:
-        _tasks.get().work()
+        tasks.get().work()
 
 
 def _ensure_threads(n: int) -> None:
     with _start_lock:
         while len(_threads) < n:
-            thread = threading.Thread(target=_serve, name=f"vr_{len(_threads)}", daemon=True)
+            thread = threading.Thread(
+                target=_serve, args=(_tasks,), name=f"vr_{len(_threads)}", daemon=True
+            )
             thread.start()
             _threads.append(thread)
 

@@ -115,3 +115,22 @@ def test_a_process_interrupted_in_for_blocks_exits():
         assert proc.returncode == -signal.SIGINT and "KeyboardInterrupt" in proc.stderr, (
             proc.stderr[-500:]
         )
+
+
+def _sum_in_blocks(rows):
+    out = np.zeros(rows)
+    parallel.for_blocks(
+        lambda a, b: out.__setitem__(slice(a, b), 1.0), rows, min_rows=1, max_rows=2
+    )
+    return out.sum()
+
+
+def test_a_forked_child_starts_its_own_threads(two_threads):
+    """The study's and a farm's worker pools fork: the parent's threads do not live on in
+    the child, which starts its own (it would wait forever for the parent's)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    assert _sum_in_blocks(64) == 64  # the parent's threads started
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as pool:
+        assert list(pool.map(_sum_in_blocks, [32, 48], timeout=60)) == [32, 48]
