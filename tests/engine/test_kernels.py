@@ -133,6 +133,8 @@ def _forked_map(seed):
     return environment_map(plate, (120, 60, 210, 150), Params(method="camera", hfov=50.0))
 
 
+# Python 3.12+ warns on any fork of a process with threads: forking one is what this checks.
+@pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")
 @needs_numba
 def test_a_process_that_used_the_kernels_can_fork_workers(monkeypatch):
     """The study's and the farm's worker pools fork: Numba's threads must survive it (GNU

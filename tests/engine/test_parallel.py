@@ -125,6 +125,8 @@ def _sum_in_blocks(rows):
     return out.sum()
 
 
+# Python 3.12+ warns on any fork of a process with threads: forking one is what this checks.
+@pytest.mark.filterwarnings("ignore:This process .* is multi-threaded:DeprecationWarning")
 def test_a_forked_child_starts_its_own_threads(two_threads):
     """The study's and a farm's worker pools fork: the parent's threads do not live on in
     the child, which starts its own (it would wait forever for the parent's)."""
