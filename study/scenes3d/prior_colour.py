@@ -18,7 +18,6 @@ from virtual_reflections.fill import REC709_LUMA, tint_colour
 from .prior_level import scaled_scores
 
 TINTS = (0.0, 0.25, 0.5)  # shares of the plate's mean colour's saturation the prior takes
-LUMA = REC709_LUMA
 
 
 def tint_factors(plate_mean, tint: float) -> np.ndarray:
@@ -26,7 +25,7 @@ def tint_factors(plate_mean, tint: float) -> np.ndarray:
     ``plate_mean`` by ``tint`` of its saturation (0: neutral, 1: its chromaticity), its
     luminance kept."""
     mean = np.maximum(np.asarray(plate_mean, np.float64), 0.0)
-    if float(mean @ LUMA) <= 0.0:  # a black plate has no colour to take
+    if float(mean @ REC709_LUMA) <= 0.0:  # a black plate has no colour to take
         return np.ones(3)
     return (1.0 - tint) + tint * tint_colour(mean).astype(np.float64)
 

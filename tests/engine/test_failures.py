@@ -209,7 +209,7 @@ def test_out_of_memory_is_one_line_exit_1(plate, tmp_path, monkeypatch, capsys):
 @pytest.mark.parametrize(
     "sig,code,word", [(signal.SIGTERM, 143, "terminated"), (signal.SIGINT, 130, "interrupted")]
 )
-def test_sigterm_is_one_line_and_leaves_no_temp(
+def test_a_signal_is_one_line_and_leaves_no_temp(
     plate, tmp_path, monkeypatch, capsys, sig, code, word
 ):
     """SIGTERM or Ctrl-C arrives while the map is being written (the writer signals its own

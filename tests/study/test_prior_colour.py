@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from study.scenes3d import prior_colour
+from virtual_reflections.fill import REC709_LUMA
 
 
 def test_a_tint_keeps_the_luminance_and_moves_toward_the_plates_colour():
@@ -13,9 +14,9 @@ def test_a_tint_keeps_the_luminance_and_moves_toward_the_plates_colour():
     assert neutral == pytest.approx(np.ones(3))
     half, whole = prior_colour.tint_factors(mean, 0.5), prior_colour.tint_factors(mean, 1.0)
     for factors in (half, whole):
-        assert float(factors @ prior_colour.LUMA) == pytest.approx(1.0)
+        assert float(factors @ REC709_LUMA) == pytest.approx(1.0)
     # the whole tint is the plate's chromaticity; half of it lies half-way
-    assert whole == pytest.approx(mean / float(mean @ prior_colour.LUMA))
+    assert whole == pytest.approx(mean / float(mean @ REC709_LUMA))
     assert half == pytest.approx(0.5 * (neutral + whole))
     assert half[0] > 1.0 > half[2]  # a warm plate: more red, less blue
 
