@@ -2,10 +2,11 @@
 
     python -m study evaluate [--quick] [--out DIR] [--hdri NAME ...] [--jobs N]
     python -m study bench [--repeat N] [--chart PNG]
-    python -m study scenes [--quick] [--cases failures|inter|motion] [--out DIR] [--jobs 1]
-    python -m study scenes --mirror-only [--quick] [--cache DIR] [--sky-gain G] [--split]
+    python -m study scenes [--quick] [--cases failures|inter|motion|heldout|polyhaven] [--out DIR]
+    python -m study scenes --mirror-only [--quick] [--cases more|heldout|polyhaven|all]
+        [--cache DIR] [--sky-gain G] [--split]
         [--oracle shadow|proxies] [--contact-shadow K] [--out DIR]
-    python -m study sky-prior
+    python -m study sky-prior [--polyhaven]
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
 (docs/accuracy.md); `bench` times the engine's lookup tables against py360convert
@@ -76,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--cases",
-        choices=("default", "failures", "inter", "motion", "heldout", "more"),
+        choices=("default", "failures", "inter", "motion", "heldout", "more", "polyhaven", "all"),
         default="default",
         help="failures: the failure cases instead (floating, looking up, wall, border, large, "
         "tiny): DIR/scenes3d_failures.json and the 'Where it fails' table of DIR/scenes3d.md; "
@@ -86,7 +87,11 @@ def build_parser() -> argparse.ArgumentParser:
         "DIR/scenes3d_motion.json and the 'In motion' table; "
         "heldout: 8 scenes under the two HDRIs nothing was tuned on: "
         "DIR/scenes3d_heldout.json and the 'Held-out HDRIs' table; "
-        "more (with --mirror-only): 32 scenes more drawn as the default 16 are",
+        "more (with --mirror-only): 32 scenes more drawn as the default 16 are; "
+        "polyhaven: 30 scenes under 15 Poly Haven HDRIs, none of Blender's, fetched once "
+        "with npm (study/polyhaven.py): DIR/scenes3d_polyhaven.json and the 'Poly Haven "
+        "HDRIs' table; all (with --mirror-only): default, more, heldout and polyhaven in "
+        "turn, and the mirror over every set",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
     p.add_argument(
@@ -148,7 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="with --mirror-only: Cycles samples per pixel (default 32)",
     )
-    sub.add_parser("sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)")
+    p = sub.add_parser(
+        "sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)"
+    )
+    p.add_argument(
+        "--polyhaven",
+        action="store_true",
+        help="also derive the mirror's gain on the 15 Poly Haven HDRIs (study/polyhaven.py)",
+    )
     return parser
 
 
@@ -185,9 +197,13 @@ def main(argv=None) -> int:
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc
         elif args.command == "sky-prior":
+            from .polyhaven import PolyHavenError
             from .sky_prior import run as run_sky_prior
 
-            run_sky_prior()
+            try:
+                run_sky_prior(polyhaven=args.polyhaven)
+            except PolyHavenError as exc:
+                raise UsageError(str(exc)) from exc
         else:
             from .bench import run_bench, run_sweep
 

@@ -21,7 +21,11 @@ in `ROUGHNESS` and kind, the gain fitted against the upper hemisphere pre-filter
 add-on's own GGX pre-filter) over the gain fitted against the sharp one (`ROUGH_SKY_RATIOS`;
 `params.sky_gain_for` multiplies the mirror's gain by it).
 
-    python -m study sky-prior
+    python -m study sky-prior [--polyhaven]
+
+`--polyhaven` then derives the mirror's gain the same way on the 15 Poly Haven HDRIs of
+study/polyhaven.py (fetched once with npm), which none of this chose: how far the gain the
+add-on uses is a property of Blender's six.
 """
 
 from __future__ import annotations
@@ -143,7 +147,47 @@ def gain_for_exponent(images, exponent: float) -> float:
     return float(GAINS[best_index(per, TRAIN)])
 
 
-def run() -> dict:
+def load_polyhaven(log=print) -> dict:
+    """The Poly Haven HDRIs of study/polyhaven.py: {name: (H, W, 3) float32, scene-linear}.
+    Their lossy compression leaves a few pixels slightly negative (under 2 %): set to 0."""
+    from . import polyhaven
+
+    folder = polyhaven.ensure(log)
+    return {
+        name: np.clip(np.nan_to_num(load_equirect(str(folder / f"{name}.exr"))[..., :3]), 0, None)
+        for name in polyhaven.NAMES
+    }
+
+
+def polyhaven_gains(images: dict, others: dict) -> dict:
+    """The mirror's gain by `run`'s derivation (the summed error; and the summed log error) on
+    ``images`` alone, and on them with TRAIN's of ``others`` (Blender's), each HDRI's own best
+    gain: {"alone", "alone_log", "with_train", "own": {name: gain}}."""
+    per = {name: errors(image) for name, image in images.items()}
+    both = {**per, **{f"blender {n}": errors(others[n]) for n in TRAIN if n in others}}
+    return {
+        "alone": float(GAINS[best_index(per, list(per))]),
+        "alone_log": float(GAINS[int(np.argmin(sum(np.log(e + 1e-12) for e in per.values())))]),
+        "with_train": float(GAINS[best_index(both, list(both))]),
+        "own": {name: float(GAINS[int(np.argmin(e))]) for name, e in per.items()},
+    }
+
+
+def print_polyhaven(gains: dict) -> None:
+    print()
+    print("The same derivation on the 15 Poly Haven HDRIs (none of Blender's; nothing chose them):")
+    print("| HDRI | own best gain |")
+    print("|---|---|")
+    for name, gain in gains["own"].items():
+        print(f"| {name} | {gain:.1f} |")
+    print(
+        f"gain minimising the summed error over them: {gains['alone']:.1f} (summing the log "
+        f"errors: {gains['alone_log']:.1f}); over them and {', '.join(TRAIN)}: "
+        f"{gains['with_train']:.1f} (the add-on's: {Params().sky_gain:.1f}, from the six alone)"
+    )
+
+
+def run(polyhaven: bool = False) -> dict:
     """Print the tables; returns the gains: {"auto": the one chosen on the training HDRIs,
     "auto_log": the same fit summing log errors (a variant the add-on does not use), "open":
     .., "enclosed": ..: each kind's from its training HDRIs, "rough": `rough_ratios`}."""
@@ -173,4 +217,7 @@ def run() -> dict:
         checks = ", ".join(f"{n} {per[n][k]:.3f} / {per[n][at]:.3f}" for n in held) or "none"
         print(f"| {kind} | {', '.join(train)} | {out[kind]:.1f} | {checks} |")
     out["rough"] = rough_ratios(images)
+    if polyhaven:
+        out["polyhaven"] = polyhaven_gains(load_polyhaven(), images)
+        print_polyhaven(out["polyhaven"])
     return out

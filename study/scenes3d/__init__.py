@@ -14,8 +14,11 @@ method and the plate mean, the plate and truth renders cached (`mirror`: a fast 
 `--cases inter` the inter-reflection cases (`inter`: one pass against the paper's passes,
 issue 11, item 4), `--cases motion` the sequences of a moving subject and camera (`motion`,
 `motion_run`, `motion_report`), `--cases heldout` the scenes under the held-out HDRIs,
-`--cases more --mirror-only` 32 scenes more drawn as the default 16 are. Research
-only: bpy is imported when a run starts (once per process); the product never imports this.
+`--cases more --mirror-only` 32 scenes more drawn as the default 16 are, `--cases polyhaven`
+30 scenes under 15 Poly Haven HDRIs that are none of Blender's (`study/polyhaven.py`), and
+`--cases all --mirror-only` the last four in turn and the mirror target over them
+(`pooled`). Research only: bpy is imported when a run starts (once per process); the product
+never imports this.
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ class ScenesInputError(Exception):
     """Bad input to the command (bpy missing, unwritable folder); one line."""
 
 
-CASES = ("default", "failures", "inter", "motion", "heldout", "more")
+CASES = ("default", "failures", "inter", "motion", "heldout", "more", "polyhaven", "all")
 SURROUNDINGS = (
     "auto",
     "open",
@@ -70,6 +73,8 @@ class Config:
             return scenes.held_out_set(self.quick)
         if self.cases == "more":
             return scenes.more_set(self.quick)
+        if self.cases == "polyhaven":
+            return scenes.polyhaven_set(self.quick)
         return scenes.scene_set(self.quick)
 
     @property
@@ -100,7 +105,10 @@ CONFIGS = {  # (cases, quick) -> Config
     ("heldout", True): Config(quick=True, width=256, samples=16, cases="heldout"),
     ("more", False): Config(cases="more"),
     ("more", True): Config(quick=True, width=256, samples=16, cases="more"),
+    ("polyhaven", False): Config(cases="polyhaven"),
+    ("polyhaven", True): Config(quick=True, width=256, samples=16, cases="polyhaven"),
 }
+HELD_OUT_CASES = {"heldout": "Held-out HDRIs", "polyhaven": "Poly Haven HDRIs"}  # doc blocks
 
 
 def _json_safe(value):
@@ -233,7 +241,7 @@ def run_study(config: Config, log=None, keep=None):
                 say,
                 config.cases == "failures",
                 # the artist's Surroundings as a row of its own: the full sets only
-                config.cases in ("default", "heldout") and not config.quick,
+                config.cases in ("default", *HELD_OUT_CASES) and not config.quick,
             )
     finally:
         if not keep:
@@ -247,7 +255,9 @@ def run_study(config: Config, log=None, keep=None):
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
         "samples": config.samples,
         "denoised": run.build.build_scenes().has_oidn(),
-        "hdris": list(scenes.HELD_OUT if config.cases == "heldout" else scenes.HDRIS),
+        "hdris": sorted({spec.hdri for spec in specs})
+        if config.cases == "polyhaven"
+        else list(scenes.HELD_OUT if config.cases == "heldout" else scenes.HDRIS),
         "held_out_hdris": list(scenes.HELD_OUT),
         "materials": [{"name": n, "roughness": r, "combine": c} for n, r, c in run.MATERIALS],
         "addon_methods": methods,
@@ -257,8 +267,8 @@ def run_study(config: Config, log=None, keep=None):
         "machine": _machine(),
         "seconds": time.perf_counter() - started,
     }
-    if config.cases == "heldout":
-        data["cases"] = "heldout"
+    if config.cases in HELD_OUT_CASES:
+        data["cases"] = config.cases
     if config.cases == "inter":
         data["cases"] = "inter"
         data["materials"] = [{"name": "mirror", "roughness": 0.0, "combine": "REPLACE"}]
@@ -343,6 +353,21 @@ def run_command(
         )
     if cases not in CASES:
         raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
+    if cases == "all":
+        return run_all(
+            quick,
+            out,
+            log,
+            mirror_only,
+            cache,
+            sky_gain,
+            split,
+            surroundings,
+            oracle,
+            contact_shadow,
+            width,
+            samples,
+        )
     if cases == "motion":  # the sequences (motion.py): their own outputs
         from . import motion_report
 
@@ -357,10 +382,18 @@ def run_command(
         )
     if cases == "more" and not mirror_only:
         raise ScenesInputError("--cases more runs with --mirror-only only")
+    if cases == "polyhaven":
+        from .. import polyhaven
+
+        try:
+            polyhaven.ensure(log=log or (lambda line: print(line, file=sys.stderr, flush=True)))
+        except polyhaven.PolyHavenError as exc:
+            raise ScenesInputError(str(exc)) from exc
     if mirror_only:
-        if cases not in ("default", "heldout", "more"):
+        if cases not in ("default", "heldout", "more", "polyhaven"):
             raise ScenesInputError(
-                "--mirror-only runs the default, the held-out or the more scenes only"
+                "--mirror-only runs the default, the held-out, the more or the Poly Haven "
+                "scenes only"
             )
         data = run_mirror(
             config,
@@ -413,6 +446,55 @@ def run_command(
     return data, crops
 
 
+def run_all(
+    quick,
+    out,
+    log,
+    mirror_only,
+    cache,
+    sky_gain,
+    split,
+    surroundings,
+    oracle,
+    contact_shadow,
+    width,
+    samples,
+):
+    """`--cases all --mirror-only`: each set of `pooled.SETS` in turn through the fast mirror
+    loop (its table printed as its own run prints it), then `pooled.pooled_table`; with
+    ``out`` OUT/scenes3d_mirror_all(_quick).json holds the four records."""
+    from . import pooled
+
+    if not mirror_only:
+        raise ScenesInputError("--cases all runs with --mirror-only only")
+    runs = {}
+    for name in pooled.SETS:
+        print(f"\n## {pooled.TITLES[name]}\n")
+        runs[name], _ = run_command(
+            quick=quick,
+            log=log,
+            cases=name,
+            mirror_only=True,
+            cache=cache,
+            sky_gain=sky_gain,
+            split=split,
+            surroundings=surroundings,
+            oracle=oracle,
+            contact_shadow=contact_shadow,
+            width=width,
+            samples=samples,
+        )
+    print("\n## The mirror over every set\n")
+    print(pooled.pooled_table(runs))
+    if out:
+        target = pathlib.Path(out)
+        target.mkdir(parents=True, exist_ok=True)
+        path = target / ("scenes3d_mirror_all" + ("_quick" if quick else "") + ".json")
+        path.write_text(json.dumps(_json_safe({"sets": runs}), indent=1) + "\n")
+        print(f"wrote {path}", file=sys.stderr)
+    return runs, {}
+
+
 def write_outputs(data, crops, target, name=None) -> None:
     from . import report
 
@@ -425,7 +507,7 @@ def write_outputs(data, crops, target, name=None) -> None:
     if data.get("cases") == "inter":
         write_inter(data, crops, target, name)
         return
-    if data.get("cases") == "heldout":
+    if data.get("cases") in HELD_OUT_CASES:
         write_heldout(data, target, name)
         return
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
@@ -469,14 +551,15 @@ def write_failures(data, crops, target, name) -> None:
 
 
 def write_heldout(data, target, name) -> None:
-    """OUT/NAME.json and the "heldout" block of OUT/scenes3d(_quick).md (the means and the
-    mirror per scene; appended under its heading when the file lacks it)."""
+    """OUT/NAME.json and the "heldout" (or "polyhaven") block of OUT/scenes3d(_quick).md (the
+    means and the mirror per scene; appended under its heading when the file lacks it)."""
     from . import report
 
     (target / f"{name}.json").write_text(json.dumps(_json_safe(data), indent=1) + "\n")
     md = target / ("scenes3d_quick.md" if data["quick"] else "scenes3d.md")
     table = report.table_means(data) + "\n\n" + report.table_scenes(data)
-    report.add_block(md, "heldout", "Held-out HDRIs", table, data["command"])
+    cases = data["cases"]
+    report.add_block(md, cases, HELD_OUT_CASES[cases], table, data["command"])
     print(f"wrote {target / (name + '.json')} and {md}", file=sys.stderr)
 
 

@@ -16,6 +16,7 @@ import sys
 import bpy
 import numpy as np
 
+from .. import polyhaven
 from .scenes import ASPECT, SENSOR_MM, Scene3D
 
 bmesh = importlib.import_module("bmesh")  # importable only once bpy is
@@ -37,6 +38,9 @@ def build_scenes():
 
 
 def hdri_path(name: str) -> pathlib.Path:
+    """A scene's dome: one of Blender's bundled HDRIs, or a Poly Haven one (`polyhaven.PREFIX`)."""
+    if name.startswith(polyhaven.PREFIX):
+        return polyhaven.path(name)
     folder = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
     return pathlib.Path(folder) / f"{name}.exr"
 

@@ -26,6 +26,7 @@ from mathutils import Vector
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
 
+from .. import polyhaven
 from ..evaluate.metrics import psnr, si_rmse, ssim, to_display
 from ..sky_prior import KINDS
 from . import build
@@ -290,11 +291,13 @@ def run_scene(
 def surroundings_of(spec: Scene3D, surroundings) -> str | None:
     """The panel's Surroundings for ``spec`` under the study's ``--surroundings``: None (the
     add-on's default), "AUTO", "OPEN" or "ENCLOSED"; "artist": the kind of the scene's HDRI
-    (`sky_prior.KINDS`), what an artist would answer looking at the shot."""
+    (`sky_prior.KINDS`, `polyhaven.KINDS`), what an artist would answer looking at the shot."""
     if surroundings is None:
         return None
     if surroundings == "artist":
-        return next(kind for kind, names in KINDS.items() if spec.hdri in names).upper()
+        name = spec.hdri.removeprefix(polyhaven.PREFIX)
+        kinds = polyhaven.KINDS if spec.hdri.startswith(polyhaven.PREFIX) else KINDS
+        return next(kind for kind, names in kinds.items() if name in names).upper()
     return surroundings.upper()
 
 

@@ -12,6 +12,9 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..polyhaven import NAMES as POLYHAVEN
+from ..polyhaven import PREFIX
+
 # Six of Blender's eight bundled HDRIs make the scenes; two are held out for later checks.
 HDRIS = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
 HELD_OUT = ("forest", "night")
@@ -243,6 +246,26 @@ def held_out_set(quick: bool = False) -> list:
             i,
             hdri=HELD_OUT[i % len(HELD_OUT)],
             shape=SHAPES[(i // len(HELD_OUT)) % len(SHAPES)],
+        )
+        for i, seed in enumerate(seeds)
+    ]
+
+
+POLYHAVEN_SEEDS = tuple(range(301, 331))  # 30 scenes under the 15 Poly Haven HDRIs
+
+
+def polyhaven_set(quick: bool = False) -> list:
+    """Scenes drawn as `scene_set`'s but under the 15 Poly Haven HDRIs of study/polyhaven.py
+    (none of Blender's; nothing in the add-on was chosen on them), two scenes each with two
+    different shapes, from the seeds 301-330 (quick: the first two)."""
+    seeds = POLYHAVEN_SEEDS[:2] if quick else POLYHAVEN_SEEDS
+    n = len(POLYHAVEN)
+    return [
+        make_scene(
+            seed,
+            i,
+            hdri=PREFIX + POLYHAVEN[i % n],
+            shape=SHAPES[(i + 2 * (i // n)) % len(SHAPES)],  # the second turn: another shape
         )
         for i, seed in enumerate(seeds)
     ]
