@@ -359,14 +359,14 @@ def run_command(
             out,
             log,
             mirror_only,
-            cache,
-            sky_gain,
-            split,
-            surroundings,
-            oracle,
-            contact_shadow,
-            width,
-            samples,
+            cache=cache,
+            sky_gain=sky_gain,
+            split=split,
+            surroundings=surroundings,
+            oracle=oracle,
+            contact_shadow=contact_shadow,
+            width=width,
+            samples=samples,
         )
     if cases == "motion":  # the sequences (motion.py): their own outputs
         from . import motion_report
@@ -446,23 +446,11 @@ def run_command(
     return data, crops
 
 
-def run_all(
-    quick,
-    out,
-    log,
-    mirror_only,
-    cache,
-    sky_gain,
-    split,
-    surroundings,
-    oracle,
-    contact_shadow,
-    width,
-    samples,
-):
+def run_all(quick, out, log, mirror_only, **options):
     """`--cases all --mirror-only`: each set of `pooled.SETS` in turn through the fast mirror
-    loop (its table printed as its own run prints it), then `pooled.pooled_table`; with
-    ``out`` OUT/scenes3d_mirror_all(_quick).json holds the four records."""
+    loop with ``options`` (`run_command`'s; its table printed as its own run prints it), then
+    `pooled.pooled_table`; with ``out`` OUT/scenes3d_mirror_all(_quick).json holds the four
+    records."""
     from . import pooled
 
     if not mirror_only:
@@ -475,14 +463,7 @@ def run_all(
             log=log,
             cases=name,
             mirror_only=True,
-            cache=cache,
-            sky_gain=sky_gain,
-            split=split,
-            surroundings=surroundings,
-            oracle=oracle,
-            contact_shadow=contact_shadow,
-            width=width,
-            samples=samples,
+            **options,
         )
     print("\n## The mirror over every set\n")
     print(pooled.pooled_table(runs))

@@ -2,6 +2,7 @@
 (not even inside a function), and the engine's command line no longer offers its commands."""
 
 import ast
+import os
 import pathlib
 import subprocess
 import sys
@@ -64,14 +65,20 @@ def test_the_engine_cli_has_no_study_commands():
         assert r.returncode == 2 and "invalid choice" in r.stderr, r.stderr
 
 
-def test_the_study_cli_rejects_bad_input_in_one_line():
-    for args in ((), ("frobnicate",), ("bench", "--repeat", "x")):
+def test_the_study_cli_rejects_bad_input_in_one_line(tmp_path):
+    # the Poly Haven HDRIs neither in VR_POLYHAVEN_DIR nor fetchable: no npm on PATH
+    no_npm = dict(os.environ, VR_POLYHAVEN_DIR=str(tmp_path / "none"), PATH=str(tmp_path))
+    polyhaven = ("scenes", "--cases", "polyhaven", "--mirror-only")
+    for args in ((), ("frobnicate",), ("bench", "--repeat", "x"), polyhaven):
         r = subprocess.run(
             [sys.executable, "-m", "study", *args],
             cwd=ROOT,
+            env=no_npm if args is polyhaven else None,
             capture_output=True,
             text=True,
             timeout=60,
         )
         assert r.returncode == 2, r.stderr
         assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+        if args is polyhaven:
+            assert "need npm" in r.stderr and "VR_POLYHAVEN_DIR" in r.stderr

@@ -76,16 +76,17 @@ def test_the_more_scenes_continue_the_default_sets_draw():
     assert [s.name for s in scenes.more_set(quick=True)] == [s.name for s in more[:2]]
 
 
-def test_the_more_scenes_run_only_in_the_fast_mirror_loop():
+@pytest.mark.parametrize("cases", ["more", "all"])
+def test_the_more_scenes_run_only_in_the_fast_mirror_loop(cases):
     r = subprocess.run(
-        [sys.executable, "-m", "study", "scenes", "--cases", "more"],
+        [sys.executable, "-m", "study", "scenes", "--cases", cases],
         cwd=ROOT,
         capture_output=True,
         text=True,
         timeout=60,
     )
     assert r.returncode == 2 and r.stderr.strip() == (
-        "study: error: --cases more runs with --mirror-only only"
+        f"study: error: --cases {cases} runs with --mirror-only only"
     ), r.stderr
 
 
