@@ -189,9 +189,10 @@ def parser() -> argparse.ArgumentParser:
         choices=("auto", "open", "enclosed", "world", "custom"),
         default=None,
         help="for --method ground, how bright the sky the plate does not show is taken to be: "
-        "open (outdoors under open sky), enclosed (a room, a studio, a walled yard), auto "
-        "(nothing known), world (the shot's world holds the on-set HDRI: it is used there) or "
-        "custom (the shot's Sky Brightness, or --sky-brightness); default: the shot's setting",
+        "open (outdoors under open sky), enclosed (a dim room, a studio, a walled yard), auto "
+        "(nothing known, or a brightly lit interior), world (the shot's world holds the on-set "
+        "HDRI: it is used there) or custom (the shot's Sky Brightness, or --sky-brightness); "
+        "default: the shot's setting",
     )
     p.add_argument(
         "--contact-shadow",

@@ -63,9 +63,10 @@ SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.par
     (
         "ENCLOSED",
         "Enclosed",
-        "A room, a studio or a yard walled in by buildings: what is above and behind the camera "
-        f"is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for a "
-        "mirror; in the Glossy look a rough surface's map takes a brighter sky, by roughness)",
+        "A dim room, a studio or a yard walled in by buildings: what is above and behind the "
+        f"camera is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for a "
+        "mirror; in the Glossy look a rough surface's map takes a brighter sky, by roughness). "
+        "A brightly lit hall, lobby or workshop is closer to Auto",
     ),
     (
         "WORLD",
