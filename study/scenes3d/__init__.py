@@ -255,9 +255,7 @@ def run_study(config: Config, log=None, keep=None):
         "resolution": [config.width, round(config.width / scenes.ASPECT)],
         "samples": config.samples,
         "denoised": run.build.build_scenes().has_oidn(),
-        "hdris": sorted({spec.hdri for spec in specs})
-        if config.cases == "polyhaven"
-        else list(scenes.HELD_OUT if config.cases == "heldout" else scenes.HDRIS),
+        "hdris": sorted({spec.hdri for spec in specs}),
         "held_out_hdris": list(scenes.HELD_OUT),
         "materials": [{"name": n, "roughness": r, "combine": c} for n, r, c in run.MATERIALS],
         "addon_methods": methods,
