@@ -103,7 +103,20 @@ def statistic_table(data) -> str:
         f"Each scene at its own best gain (an oracle: Surroundings Custom set to each shot's "
         f"sky exactly): {best.mean():+.2f} dB, ahead in {(best > 0).sum()}/{len(best)}"
     )
+    own = ", ".join(f"{name} {gain:.2f}" for name, gain in scene_gains(data).items())
+    rows.append(f"Each scene's own best gain: {own}")
     return "\n".join(rows)
+
+
+def scene_gains(data) -> dict:
+    """{scene name: the gain, at the add-on's level statistic, at which its `scale_curve`
+    peaks} (on the SCALES grid)."""
+    return {
+        record["scene"]["name"]: float(
+            SKY_GAINS["auto"] * SCALES[int(np.argmax(record["split"]["prior_scales"]))]
+        )
+        for record in data["scenes"]
+    }
 
 
 def best_constant_gain(data) -> tuple:

@@ -33,3 +33,9 @@ def test_the_statistic_table_needs_the_auto_gain():
 
 def test_the_scales_hold_one():
     assert prior_level.SCALES[50] == pytest.approx(1.0)
+
+
+def test_each_scene_s_own_best_gain_is_where_its_curve_peaks():
+    curve = -((np.log(prior_level.SCALES) - math.log(2.0)) ** 2)  # peaks at twice Auto's gain
+    data = {"scenes": [{"scene": {"name": "s1"}, "split": {"prior_scales": list(curve)}}]}
+    assert prior_level.scene_gains(data)["s1"] == pytest.approx(2 * SKY_GAINS["auto"], rel=0.05)
