@@ -411,6 +411,7 @@ def run_command(
             print(mirror.split_table(data))
             print()
             print(prior_level.statistic_table(data))
+            print(prior_level.scene_gains_line(data))
             print()
             print(prior_colour.colour_table(data))
         if oracle is not None:

@@ -103,9 +103,16 @@ def statistic_table(data) -> str:
         f"Each scene at its own best gain (an oracle: Surroundings Custom set to each shot's "
         f"sky exactly): {best.mean():+.2f} dB, ahead in {(best > 0).sum()}/{len(best)}"
     )
-    own = ", ".join(f"{name} {gain:.2f}" for name, gain in scene_gains(data).items())
-    rows.append(f"Each scene's own best gain: {own}")
     return "\n".join(rows)
+
+
+def scene_gains_line(data) -> str:
+    """Each scene's own best gain (`scene_gains`) on one line; only for a run at the add-on's
+    own Auto gain, as `statistic_table`."""
+    if data.get("sky_gain") is not None or data.get("surroundings") not in (None, "auto"):
+        return "(each scene's own best gain: at the Auto gain only)"
+    own = ", ".join(f"{name} {gain:.2f}" for name, gain in scene_gains(data).items())
+    return f"Each scene's own best gain: {own}"
 
 
 def scene_gains(data) -> dict:

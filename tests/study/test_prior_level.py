@@ -39,3 +39,5 @@ def test_each_scene_s_own_best_gain_is_where_its_curve_peaks():
     curve = -((np.log(prior_level.SCALES) - math.log(2.0)) ** 2)  # peaks at twice Auto's gain
     data = {"scenes": [{"scene": {"name": "s1"}, "split": {"prior_scales": list(curve)}}]}
     assert prior_level.scene_gains(data)["s1"] == pytest.approx(2 * SKY_GAINS["auto"], rel=0.05)
+    assert prior_level.scene_gains_line(data).startswith("Each scene's own best gain: s1 3.")
+    assert "Auto gain only" in prior_level.scene_gains_line({"sky_gain": 1.0, "scenes": []})
