@@ -24,7 +24,7 @@ from ..virtual_reflections.imagefiles import (
     read_rgba,
 )
 from ..virtual_reflections.memory import check_fits, plate_job_bytes
-from . import compositor, plate, sequence, shading, world_probe
+from . import compositor, maps, plate, sequence, shading, world_probe
 from .batch_options import BatchOptions
 from .batch_signals import raise_if_signalled
 
@@ -51,8 +51,11 @@ def _set_engine(scene, name):
 
 
 def configure(scene, options: BatchOptions):
-    """The render and reflection settings from the command line (both paths)."""
+    """The render and reflection settings from the command line (both paths). Maps saved as
+    files go under --out (OUT/vr_maps/<name>/), never beside the shot."""
     settings = scene.virtual_reflections
+    out = os.path.abspath(options.out)
+    maps.save_under(scene, os.path.join(out, "vr_maps", shot_name(options)))
     if options.scale:
         scene.render.resolution_percentage = options.scale
     if options.combine is not None:

@@ -84,10 +84,23 @@ def maps_folder(create=True) -> str:
     return os.path.join(os.path.dirname(bpy.path.abspath(blend)), "vr_maps")
 
 
+_saved_under = {}  # scene.session_uid -> where its saved maps go instead (the batch: save_under)
+
+
+def save_under(scene, folder: str):
+    """Save ``scene``'s maps stored as files into ``folder`` instead, for this session (the
+    batch: under --out; it writes nothing beside the shot, which may be read-only on a farm,
+    and never replaces the artist's saved maps; the .blend is not saved, so the shot keeps
+    its own paths)."""
+    _saved_under[scene.session_uid] = folder
+
+
 def save_folder(settings):
-    """Where a scene's maps are saved: `maps_folder` when its ``map_storage`` is FILES, None
-    when they are packed. ValueError as `maps_folder`."""
-    return maps_folder() if settings.map_storage == "FILES" else None
+    """Where a scene's maps are saved: `maps_folder` (or the batch's `save_under`) when its
+    ``map_storage`` is FILES, None when they are packed. ValueError as `maps_folder`."""
+    if settings.map_storage != "FILES":
+        return None
+    return _saved_under.get(settings.id_data.session_uid) or maps_folder()
 
 
 def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str = KIND):
