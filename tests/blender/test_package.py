@@ -97,3 +97,27 @@ def test_the_zip_leaves_out_what_is_not_the_extension(names, folder):
 
 def test_no_zip_inside_the_zip(names):
     assert not [n for n in names if n.lower().endswith(".zip")]
+
+
+def test_build_extension_makes_the_zip_and_a_remote_repository(tmp_path):
+    """`tools/build-extension --repo DIR` (the README's Install): the zip, and a folder a studio
+    serves whose index.json (Blender's server-generate) lists the extension and its archive."""
+    import json
+
+    r = subprocess.run(
+        [str(ROOT / "tools" / "build-extension"), "--repo", str(tmp_path / "repo")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    index_path, zip_path = r.stdout.split()
+    assert pathlib.Path(zip_path).is_file() and zipfile.is_zipfile(zip_path)
+    index = json.loads(pathlib.Path(index_path).read_text())
+    (entry,) = [e for e in index["data"] if e["id"] == "virtual_reflections"]
+    assert (tmp_path / "repo" / entry["archive_url"].lstrip("./")).is_file()
+    assert entry["archive_hash"].startswith("sha256:")
+    bad = subprocess.run(
+        [str(ROOT / "tools" / "build-extension"), "--nope"], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
