@@ -183,6 +183,13 @@ def _extension_version():
         return "unknown"
 
 
+def _blender():
+    """The Blender that renders: its version and build (a frame made by another is made again)."""
+    build = bpy.app.build_hash
+    build = build.decode(errors="replace") if isinstance(build, bytes) else str(build)
+    return {"version": bpy.app.version_string, "build_hash": build}
+
+
 def _view(scene):
     """The colour management a PNG is written through (the scene's view transform)."""
     view = scene.view_settings
@@ -230,6 +237,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
         samples = getattr(scene.eevee, "taa_render_samples", None)
     return {
         "extension_version": _extension_version(),
+        "blender": _blender(),
         "shot": batch_record.file_identity(bpy.data.filepath) if bpy.data.filepath else None,
         "scene": scene.name,
         "reflections": reflections if not options.no_reflections else None,

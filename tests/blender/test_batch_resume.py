@@ -2,14 +2,18 @@
 run with other inputs renders complete frames again and says why, the same inputs skip."""
 
 import json
+import os
 import pathlib
+import struct
 import subprocess
 import sys
+import zlib
 
 import bpy
 import numpy as np
 import pytest
 from sequence_shots import COLOURS, build_scene, read, write_plates
+from shots import addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -101,3 +105,57 @@ def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
     assert older.returncode == 0, older.stderr[-2000:]
     assert statuses(out) == [("rendered", "no record of what made it"), ("skipped", None)]
     assert not [p for p in out.iterdir() if ".tmp" in p.name]
+
+
+def _other_density(png):
+    """``png`` with another pixel density in its pHYs chunk (its CRC made again): a valid
+    file of the same size whose bytes differ."""
+    at = png.index(b"pHYs") - 4
+    (length,) = struct.unpack(">I", png[at : at + 4])
+    body = bytearray(png[at + 4 : at + 8 + length])
+    body[4 + 3] ^= 0x01  # pixels per unit along x
+    crc = struct.pack(">I", zlib.crc32(bytes(body)) & 0xFFFFFFFF)
+    return png[: at + 4] + bytes(body) + crc + png[at + 12 + length :]
+
+
+def test_a_plate_replaced_with_its_size_and_time_kept_renders_again(shot, tmp_path):
+    """Resume compares the plate's bytes (a hash), not its size and time alone: a plate
+    replaced by other bytes of the same size, its time put back, is not skipped."""
+    blend, plate_a, _ = shot
+    out = tmp_path / "out"
+    common = [blend, "--out", out, "--frames", "1-2", "--resolution", 256, "--plate", plate_a]
+    first = run(*common)
+    assert first.returncode == 0, first.stderr[-2000:]
+    plate_file = pathlib.Path(plate_a.replace("####", "0002"))
+    data = plate_file.read_bytes()
+    st = plate_file.stat()
+    plate_file.write_bytes(_other_density(data))  # other bytes, the same size and pixels
+    os.utime(plate_file, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert plate_file.stat().st_size == st.st_size
+    assert plate_file.stat().st_mtime_ns == st.st_mtime_ns
+    again = run(*common)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert statuses(out) == [("skipped", None), ("rendered", "made with another plate")]
+    record = json.loads((out / ".shot.0002.exr.vr.json").read_text())
+    assert record["inputs"]["plate"]["blake2b"]
+
+
+def test_frames_made_with_another_blender_render_again(shot, tmp_path):
+    """The record holds the Blender that made the frame: another one renders it again."""
+    blend, plate_a, _ = shot
+    out = tmp_path / "out"
+    common = [blend, "--out", out, "--frames", "1-2", "--resolution", 256, "--plate", plate_a]
+    first = run(*common)
+    assert first.returncode == 0, first.stderr[-2000:]
+    path = out / ".shot.0001.exr.vr.json"
+    record = json.loads(path.read_text())
+    assert record["inputs"]["blender"]["version"] == bpy.app.version_string
+    # As if Blender 4.2 had made frame 1: its record stays whole (fingerprint of its inputs).
+    batch_record = addon_part("operators.batch_record")
+    record["inputs"]["blender"] = {"version": "4.2.0", "build_hash": "0123456789ab"}
+    record["fingerprint"] = batch_record.digest(record["inputs"])
+    path.write_text(json.dumps(record))
+    again = run(*common)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert statuses(out) == [("rendered", "made with Blender 4.2.0"), ("skipped", None)]
+    assert "[1] rendered again: made with Blender 4.2.0" in again.stdout
