@@ -17,6 +17,7 @@ tags it with the display's space.) The image then reads its pixels from that fil
 import hashlib
 import os
 import tempfile
+import uuid
 
 import bpy
 import numpy as np
@@ -62,16 +63,19 @@ def version(image) -> int:
     return _versions.get(image.name_full, 0)
 
 
-def maps_folder(create=True) -> str:
-    """The folder saved maps go to (the preferences' choice). Raises ValueError (one line)
-    when that is "beside the .blend" and the file has not been saved yet."""
+FILE_ID = "vr_file_id"  # on a scene: its id in the user folder while its .blend is unsaved
+
+
+def maps_folder(scene=None, create=True) -> str:
+    """The folder ``scene``'s (default: the context's) saved maps go to, the preferences'
+    choice. Raises ValueError (one line) when that is "beside the .blend" and the file has not
+    been saved yet. ``create`` False: nothing is made (the panel draws it)."""
     blend = bpy.data.filepath
     if addon_preferences().map_folder == "USER":
-        stem = bpy.path.display_name_from_filepath(blend) if blend else "untitled"
         try:
             return bpy.utils.extension_path_user(
                 images.__package__.rpartition(".")[0],
-                path=os.path.join("maps", bpy.path.clean_name(stem)),
+                path=os.path.join("maps", _user_key(scene or bpy.context.scene, create)),
                 create=create,
             )
         except ValueError:
@@ -82,6 +86,22 @@ def maps_folder(create=True) -> str:
             "extension user folder in the preferences)"
         )
     return os.path.join(os.path.dirname(bpy.path.abspath(blend)), "vr_maps")
+
+
+def _user_key(scene, create) -> str:
+    """The folder of one file's maps in the user folder, unique to that file: its name and a
+    hash of its whole path (two shots named lighting.blend in two folders keep their own), or
+    for an unsaved file "untitled-" and an id made once and kept in the scene (each unsaved
+    file its own). Without ``create`` an id not made yet reads "new"."""
+    blend = bpy.data.filepath
+    if blend:
+        path = os.path.realpath(bpy.path.abspath(blend))
+        digest = hashlib.sha1(path.encode(errors="surrogateescape")).hexdigest()[:8]
+        return f"{bpy.path.clean_name(bpy.path.display_name_from_filepath(blend))}-{digest}"
+    file_id = scene.get(FILE_ID) if scene is not None else None
+    if not file_id and create and scene is not None:
+        file_id = scene[FILE_ID] = uuid.uuid4().hex[:12]
+    return f"untitled-{file_id or 'new'}"
 
 
 _saved_under = {}  # scene.session_uid -> where its saved maps go instead (the batch: save_under)
@@ -100,7 +120,8 @@ def save_folder(settings):
     ``map_storage`` is FILES, None when they are packed. ValueError as `maps_folder`."""
     if settings.map_storage != "FILES":
         return None
-    return _saved_under.get(settings.id_data.session_uid) or maps_folder()
+    scene = settings.id_data
+    return _saved_under.get(scene.session_uid) or maps_folder(scene)
 
 
 def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str = KIND):

@@ -252,7 +252,7 @@ class VR_PT_output(_Tab, bpy.types.Panel):
         col.prop(settings, "map_storage")
         if settings.map_storage == "FILES":
             try:
-                where = maps.maps_folder(create=False)
+                where = maps.maps_folder(context.scene, create=False)
             except ValueError as exc:
                 where = str(exc)
             _wrapped(col, where, context, icon="FILE_FOLDER")

@@ -117,3 +117,61 @@ def test_packing_without_openimageio_still_keeps_the_map(addon, tmp_path, monkey
     image = bpy.data.images["VR Map Fallback"]
     assert image.packed_file is not None
     np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=1e-3, atol=1e-3)
+
+
+@pytest.fixture
+def user_folder(addon, tmp_path, monkeypatch):
+    """Saved maps go to the extension's user folder (here tmp_path/user: the add-on is loaded
+    the test way, not installed, so Blender has no user folder for it)."""
+    preferences = addon_part("preferences")
+    monkeypatch.setattr(preferences.DEFAULTS, "map_folder", "USER")
+    root = tmp_path / "user"
+
+    def extension_path_user(package, path="", create=False):
+        folder = root / package / path
+        if create:
+            folder.mkdir(parents=True, exist_ok=True)
+        return str(folder)
+
+    monkeypatch.setattr(bpy.utils, "extension_path_user", extension_path_user)
+    return root
+
+
+def save_a_map(value):
+    """A map of one ``value`` saved where the scene saves maps; returns its file's path."""
+    settings = bpy.context.scene.virtual_reflections
+    settings.map_storage = "FILES"
+    env = np.full((32, 64, 3), value, np.float32)
+    image = maps.store_map("VR Map Ball", env, maps.save_folder(settings))
+    return bpy.path.abspath(image.filepath)
+
+
+def test_two_shots_of_one_name_keep_their_own_maps_in_the_user_folder(user_folder, tmp_path):
+    """Two shots called lighting.blend in two folders: each its own maps (issue 40)."""
+    paths = []
+    for value, where in ((0.25, "sh010"), (0.75, "sh020")):
+        bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+        (tmp_path / where).mkdir()
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / where / "lighting.blend"))
+        paths.append(save_a_map(value))
+        assert paths[-1].startswith(str(user_folder)) and "lighting" in paths[-1]
+    assert paths[0] != paths[1]
+    for path, value in zip(paths, (0.25, 0.75), strict=True):
+        pixels, _ = read_back(path)
+        np.testing.assert_allclose(pixels, value, atol=1e-3)
+    # The same shot again: the same folder (its maps are found again, not multiplied).
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "sh010" / "lighting.blend"))
+    assert save_a_map(0.5) == paths[0]
+
+
+def test_unsaved_files_keep_their_own_maps_in_the_user_folder(user_folder):
+    """Two unsaved files: two folders, not one shared "untitled"; one file keeps its own."""
+    paths = []
+    for value in (0.25, 0.75):
+        bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+        paths.append(save_a_map(value))
+        assert save_a_map(value) == paths[-1]  # the same file: the same folder every time
+    assert paths[0] != paths[1]
+    for path, value in zip(paths, (0.25, 0.75), strict=True):
+        pixels, _ = read_back(path)
+        np.testing.assert_allclose(pixels, value, atol=1e-3)
