@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import unicodedata
 from dataclasses import dataclass, fields
 
 from ..virtual_reflections.frames import parse_frames
@@ -27,6 +28,10 @@ FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
 MAX_SMOOTHING = 0.95
 RANGES = {"scale": (1, 10000), "samples": (1, 1 << 24), "max_passes": (1, 100)}
+SHOTS_OWN_AT_0 = ("samples", "max_passes")  # 0 keeps the shot's own (--scale 0 is refused)
+# What the batch appends to a name (<name>_render.exr, <name>_render.0001.exr,
+# <name>_composite.png): a name ending in one would write another name's files.
+SUFFIXES = ("_render", "_composite")
 # Numbers of a closed range (None: not given, the shot's own setting).
 FLOAT_RANGES = {
     "sky_brightness": (0.0, MAX_SKY_GAIN),
@@ -47,6 +52,22 @@ def _is_int(value):
 
 def _is_number(value):
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def check_name(name, what="--name"):
+    """ValueError (one line) for an output stem whose files another stem's could be (one
+    ending in a SUFFIXES entry: ``a_render.0001.exr`` is run ``a``'s CG element) or that
+    holds a control character (a newline in a file name breaks every line-based tool).
+    ``what``: how the message names it (the .blend's name is the default --name)."""
+    if any(unicodedata.category(c) == "Cc" for c in name):
+        raise ValueError(f"{what} must be a file name without control characters, not {name!r}")
+    folded = name.casefold()
+    for suffix in SUFFIXES:
+        if folded.endswith(suffix):
+            raise ValueError(
+                f"{what} must not end in {_words(SUFFIXES)}, not {name!r}: the batch names "
+                f"its own files so (<name>{suffix}...); choose another --name"
+            )
 
 
 @dataclass(frozen=True)
@@ -120,10 +141,12 @@ class BatchOptions:
                 raise ValueError(f"--{key.replace('_', '-')} must be a number >= 0, not {value!r}")
         for key, (low, high) in RANGES.items():
             value = getattr(self, key)
-            if value is not None and value != 0 and not low <= value <= high:
+            own = key in SHOTS_OWN_AT_0
+            if value is not None and not (own and value == 0) and not low <= value <= high:
                 raise ValueError(
-                    f"--{key.replace('_', '-')} must be from {low} to {high} (0: the shot's "
-                    f"own), not {value!r}"
+                    f"--{key.replace('_', '-')} must be from {low} to {high}"
+                    + (" (0: the shot's own)" if own else "")
+                    + f", not {value!r}"
                 )
         if self.max_passes == 0:
             raise ValueError("--max-passes must be at least 1, not 0")
@@ -139,6 +162,8 @@ class BatchOptions:
             raise ValueError(
                 f"--name must be a file name without a folder or a leading dot, not {self.name!r}"
             )
+        if self.name is not None:
+            check_name(self.name)
         if self.frame is not None and not _is_int(self.frame):
             raise ValueError(f"--frame must be a frame number, not {self.frame!r}")
         if self.passes != "auto" and not (_is_int(self.passes) and self.passes >= 1):
@@ -182,6 +207,11 @@ class BatchOptions:
                 raise ValueError(
                     f"--{key.replace('_', '-')} is on or off, not {getattr(self, key)!r}"
                 )
+        if self.no_reflections and self.passes != 1:
+            raise ValueError(
+                f"--passes {self.passes} with --no-reflections: passes are reflections between "
+                "the objects; drop one of the two"
+            )
         if self.frames is not None:
             if self.frame is not None:
                 raise ValueError("give --frame or --frames, not both")

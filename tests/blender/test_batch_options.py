@@ -86,7 +86,7 @@ def test_from_namespace_keeps_every_value(batch_options, render_shot):
         *("--objects", "A", "B", "--combine", "MIX", "--resolution", "512"),
         *("--triangles", "0", "--method", "paper", "--engine", "EEVEE", "--samples", "8"),
         *("--scale", "25", "--passes", "auto", "--tolerance", "0.01", "--max-passes", "4"),
-        *("--no-reflections", "--name", "n", "--frames", "1-10x2", "--format", "png"),
+        *("--name", "n", "--frames", "1-10x2", "--format", "png"),
         *("--overwrite", "--report", "r.json", "--smoothing", "0.9"),
     ]
     options = batch_options.BatchOptions.from_namespace(render_shot.parse(argv))
@@ -99,9 +99,11 @@ def test_from_namespace_keeps_every_value(batch_options, render_shot):
         25,
     )
     assert (options.passes, options.tolerance, options.max_passes) == ("auto", 0.01, 4)
-    assert options.no_reflections and options.overwrite and options.name == "n"
+    assert not options.no_reflections and options.overwrite and options.name == "n"
     assert (options.frames, options.format, options.report) == ("1-10x2", "png", "r.json")
     assert options.smoothing == 0.9 and options.frame is None
+    plain = render_shot.parse([*BASE, "--no-reflections"])  # (not with --passes: refused)
+    assert batch_options.BatchOptions.from_namespace(plain).no_reflections
 
 
 def test_frozen(batch_options):
@@ -197,6 +199,16 @@ def test_render_samples_options_are_batch_options(batch_options):
         ({"tolerance": -1}, "--tolerance must be a number >= 0"),
         ({"name": "../x"}, "--name must be a file name"),
         ({"name": ".hidden"}, "--name must be a file name"),
+        # Issue 40, 27: another name's outputs (run a's CG elements are a_render.####.exr).
+        ({"name": "a_render"}, "--name must not end in _render or _composite"),
+        ({"name": "a_COMPOSITE"}, "--name must not end in _render or _composite"),
+        # Issue 40, 40: control characters; --passes with nothing to reflect.
+        ({"name": "a\nb"}, "--name must be a file name without control characters"),
+        ({"name": "a\x7fb"}, "--name must be a file name without control characters"),
+        ({"no_reflections": True, "passes": 3}, "--passes 3 with --no-reflections"),
+        ({"no_reflections": True, "passes": "auto"}, "--passes auto with --no-reflections"),
+        # Issue 42, 5: --scale 0 rendered at the shot's 100 %.
+        ({"scale": 0}, "--scale must be from 1 to 10000, not 0"),
     ],
 )
 def test_bad_values_are_refused_up_front(batch_options, fields, message):
