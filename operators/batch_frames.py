@@ -74,7 +74,8 @@ class PlateSource:
     def check(self, frames):
         """Refuse, before anything is written, frames whose plate is missing, a sequence
         whose frames differ in size (bounds smoothed across sizes would mix coordinates),
-        and plate files Blender would misread (`check_plate_file`)."""
+        plate files Blender would misread (`check_plate_file`) and a still plate that cannot
+        be read whole (before Blender prints its own lines about it)."""
         if self.kind == "sequence":
             first = None
             for frame in frames:
@@ -95,8 +96,9 @@ class PlateSource:
         path = self.file(frames[0])
         if not os.path.isfile(path):
             raise ValueError(f"plate not found: {path}")
-        if self.kind == "still":
+        if self.kind == "still":  # read whole now: Blender's own lines would come first
             check_plate_file(path)
+            check_complete(path, "plate")
         if self.kind == "movie":
             image = self.load(frames[0])
             count = image.frame_duration
@@ -327,7 +329,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     scene.frame_set(frames[0])
     image = source.load(frames[0])
     settings.plate_image = image
-    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
+    compositor.plate_for_batch(scene, image)  # the artist's set-up kept
     configure(scene, options)
     use_passes = not options.no_reflections and options.passes != 1
     own = None if use_passes else artist_compositor(scene)  # passes composite in NumPy

@@ -295,3 +295,27 @@ def test_an_interrupt_in_a_callback_from_c_is_held_for_the_next_step():
         signals.raise_if_signalled()  # and the signal is the block's alone: nothing raised
     finally:
         sys.unraisablehook = previous
+
+
+# 34: damaged still plates in frame-range mode: stderr is exactly the tool's one line.
+@pytest.mark.parametrize("damage", ["corrupt-exr", "truncated-jpeg", "truncated-exr"])
+def test_a_damaged_still_plate_in_a_frame_range_is_one_line(shot, tmp_path, damage):
+    blend, _ = shot
+    rng = np.random.default_rng(7)
+    noise = rng.random((32, 64, 3), dtype=np.float32)
+    kind, ext = damage.split("-")
+    plate = tmp_path / f"damaged.{ext}"
+    buf = oiio.ImageBuf(oiio.ImageSpec(64, 32, 3, "half" if ext == "exr" else "uint8"))
+    buf.set_pixels(oiio.ROI(), noise if ext == "exr" else (noise * 255).astype(np.uint8))
+    assert buf.write(str(plate))
+    data = plate.read_bytes()
+    if kind == "corrupt":  # the header whole, the pixels' bytes overwritten
+        cut = len(data) // 3
+        plate.write_bytes(data[:cut] + bytes(rng.integers(0, 256, len(data) - cut, np.uint8)))
+    else:
+        plate.write_bytes(data[: len(data) * 2 // 3])
+    out = tmp_path / "out"
+    r = run(blend, "--plate", plate, "--out", out, "--frames", "1-2", *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert str(plate) in r.stderr
+    assert not out.exists()
