@@ -40,6 +40,7 @@ import bpy
 from ..virtual_reflections.frames import sequence_range
 from . import bounds, camera_match, plate
 from .images import CREATED
+from .nodes import USE_NODES_DEPRECATED, new_node
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
 GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
@@ -110,7 +111,47 @@ def setup_from_plate(scene, image, ground=False, lens=False, view=True) -> dict:
         record["resolution"][0] * record["pixel_aspect"][0],
         record["resolution"][1] * record["pixel_aspect"][1],
     )
-    record["advice"] = camera_match.advice(image, framed, record["lens"])
+    record["advice"] = camera_match.advice(image, framed, record["lens"]) + eevee_advice(scene)
+    if _NODE_GROUPS:
+        record["compositor"] = _setup_group(scene, image)
+    else:
+        record["compositor"] = _setup_tree(scene, image)
+    scene[RECORD] = json.dumps(record)
+    return record
+
+
+def plate_for_batch(scene, image) -> dict:
+    """The batch's set-up: a shot the artist Set Up From Plate keeps that set-up (view
+    transform, ground, lens, their compositor) and only takes `image` as its plate (camera
+    background, the compositor's plate node, the render size); a shot never set up is set up
+    without touching its view transform. Returns the record, as `setup_from_plate` does.
+
+    The record keeps what the scene was before the artist's Set Up, so Undo Plate Set-Up in
+    a file the batch saved still goes back to that."""
+    api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
+    if RECORD not in scene:
+        return setup_from_plate(scene, image, view=False)
+    record = json.loads(scene[RECORD])
+    if record["api"] != api:  # set up under the other compositor API: do it again here
+        kept = {key: record.get(key) for key in ("ground", "view", "lens")}
+        record.update(ground=None, view={}, lens=None)  # the undo below must not touch them
+        scene[RECORD] = json.dumps(record)
+        record = setup_from_plate(scene, image, view=False)
+        record.update(kept)
+        scene[RECORD] = json.dumps(record)
+        return record
+    camera = record["camera"]
+    _undo_background(camera, record["image"])
+    if _NODE_GROUPS:
+        _undo_group(scene, record["compositor"])
+    else:
+        _undo_tree(scene, record["compositor"])
+    width, height = plate.size(image)
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    record["image"] = image.name
+    record["camera"] = _show_background(scene.camera, image)
+    if camera is not None and record["camera"] is not None:  # what the artist had before
+        record["camera"]["show_background_images"] = camera["show_background_images"]
     if _NODE_GROUPS:
         record["compositor"] = _setup_group(scene, image)
     else:
@@ -244,8 +285,58 @@ def add_ground(scene):
     obj[CREATED] = GROUND_KIND
     obj.location = centre
     obj.is_shadow_catcher = True  # Cycles: shows only the shadows cast on it
+    obj.data.materials.append(_ground_material())
     scene.collection.objects.link(obj)
     return {"object": obj.name}
+
+
+def eevee_advice(scene) -> list[str]:
+    """A warning for each visible shadow catcher EEVEE would draw as an opaque surface over
+    the plate (no Holdout for EEVEE in its materials, as `add_ground`'s ground has) when the
+    scene renders in EEVEE; else nothing."""
+    if "EEVEE" not in scene.render.engine:
+        return []
+    return [
+        f"Warning: EEVEE draws the shadow catcher '{o.name}' as an opaque surface over the "
+        "plate: render in Cycles, or give its material a Holdout output for EEVEE"
+        for o in scene.objects
+        if getattr(o, "is_shadow_catcher", False) and o.visible_get() and not _holds_out(o)
+    ]
+
+
+def _holds_out(obj) -> bool:
+    """True when every material of ``obj`` renders as a Holdout in EEVEE."""
+    slots = [s.material for s in getattr(obj, "material_slots", ())]
+    if not slots or None in slots:
+        return False
+    for material in slots:
+        output = material.node_tree.get_output_node("EEVEE") if material.node_tree else None
+        links = output.inputs["Surface"].links if output is not None else ()
+        if not links or links[0].from_node.type != "HOLDOUT":
+            return False
+    return True
+
+
+def _ground_material():
+    """The ground's material, one output per engine: Cycles, the default grey diffuse (the
+    shadow catcher's look in reflections and bounced light, as without a material); EEVEE,
+    which has no shadow catcher and would draw an opaque grey floor over the plate, a Holdout
+    (transparent film: the plate shows where the ground is, in F12 and Material Preview
+    alike, without the contact shadow only Cycles catches). Tagged CREATED."""
+    material = bpy.data.materials.new(GROUND_NAME)
+    material[CREATED] = GROUND_KIND
+    if not USE_NODES_DEPRECATED:
+        material.use_nodes = True
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    shaders = (("CYCLES", "ShaderNodeBsdfDiffuse", 0), ("EEVEE", "ShaderNodeHoldout", -200))
+    for target, kind, y in shaders:
+        name = PREFIX + target.capitalize()
+        shader = new_node(nodes, kind, name + " Ground", (0, y))
+        output = new_node(nodes, "ShaderNodeOutputMaterial", name + " Output", (250, y))
+        output.target = target
+        links.new(shader.outputs[0], output.inputs["Surface"])
+    return material
 
 
 def _remove_ground(record):
@@ -254,8 +345,13 @@ def _remove_ground(record):
         return
     mesh = obj.data
     bpy.data.objects.remove(obj)
-    if mesh is not None and mesh.get(CREATED) == GROUND_KIND and mesh.users == 0:
-        bpy.data.meshes.remove(mesh)
+    if mesh is None or mesh.get(CREATED) != GROUND_KIND or mesh.users:
+        return
+    materials = [m for m in mesh.materials if m is not None and m.get(CREATED) == GROUND_KIND]
+    bpy.data.meshes.remove(mesh)
+    for material in materials:
+        if material.users == 0:
+            bpy.data.materials.remove(material)
 
 
 def _show_background(camera, image):

@@ -245,6 +245,8 @@ class VR_OT_setup_plate(bpy.types.Operator):
             message += f"; {view} so the composite keeps the plate's colours"
         if record["ground"]:
             message += f"; shadow-catcher ground '{record['ground']['object']}' added"
+            if "EEVEE" in scene.render.engine:  # no shadow catcher there: a holdout
+                message += " (EEVEE shows the plate there; Cycles also catches the shadows)"
         self.report({"INFO"}, message)
         for line in record["advice"]:
             self.report({"WARNING"} if line.startswith("Warning") else {"INFO"}, line)

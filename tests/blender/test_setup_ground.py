@@ -69,6 +69,62 @@ def test_no_second_ground(modules, tmp_path):
     assert comp.setup_from_plate(scene, image)["ground"] is None  # the default: no ground
 
 
+EEVEE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
+
+
+def surface_of(material, target):
+    """The type of the shader node feeding ``material``'s output for ``target``'s engine."""
+    output = material.node_tree.get_output_node(target)
+    return output.inputs["Surface"].links[0].from_node.type
+
+
+def test_ground_holds_out_in_eevee_and_catches_shadows_in_cycles(modules, tmp_path):
+    """EEVEE (Blender's default engine) has no shadow catcher: the ground gives it a Holdout,
+    so F12 shows the plate there; Cycles keeps its shadow catcher with the default grey
+    surface. The file's engine is left as it is, and Undo removes the material too."""
+    comp, _ = modules
+    scene, _cube, image = scene_with_cube(tmp_path)
+    scene.render.engine = EEVEE
+    record = comp.setup_from_plate(scene, image, ground=True)
+    assert scene.render.engine == EEVEE
+    ground = bpy.data.objects[record["ground"]["object"]]
+    assert ground.is_shadow_catcher
+    (material,) = ground.data.materials
+    name = material.name
+    assert material.get("vr_created") == "ground"
+    assert surface_of(material, "EEVEE") == "HOLDOUT"
+    assert surface_of(material, "CYCLES") == "BSDF_DIFFUSE"
+    assert not [line for line in record["advice"] if "shadow catcher" in line]
+    assert comp.undo_setup_from_plate(scene)
+    assert name not in bpy.data.materials
+
+
+def test_operator_says_what_eevee_shows(modules, tmp_path):
+    scene, _cube, _image = scene_with_cube(tmp_path)
+    scene.render.engine = EEVEE
+    reports = []
+    operator = type("Op", (), {"ground": True, "lens": False})()
+    operator.report = lambda level, text: reports.append((set(level), text))
+    setup = bpy.types.VR_OT_setup_plate
+    assert setup.execute(operator, bpy.context) == {"FINISHED"}
+    assert "EEVEE shows the plate there" in reports[0][1], reports
+
+
+def test_a_shadow_catcher_of_the_artist_in_eevee_is_warned_about(modules, tmp_path):
+    """Set Up does not edit the artist's own shadow catcher, which EEVEE draws opaque: it
+    says so (in Cycles it does not need to)."""
+    comp, _ = modules
+    scene, _cube, image = scene_with_cube(tmp_path)
+    bpy.ops.mesh.primitive_plane_add(size=10)
+    bpy.context.active_object.is_shadow_catcher = True
+    bpy.context.active_object.name = "Floor"
+    scene.render.engine = "CYCLES"
+    assert not [x for x in comp.setup_from_plate(scene, image)["advice"] if "Floor" in x]
+    scene.render.engine = EEVEE
+    (line,) = [x for x in comp.setup_from_plate(scene, image)["advice"] if "Floor" in x]
+    assert line.startswith("Warning: EEVEE draws the shadow catcher 'Floor' as an opaque")
+
+
 def render(scene, path):
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
