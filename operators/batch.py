@@ -66,7 +66,7 @@ def render_shot(options: BatchOptions, started):
         scene.frame_set(options.frame)
     image = load_plate(options.plate)
     settings.plate_image = image
-    compositor.setup_from_plate(scene, image, view=False)  # the artist's view transform
+    compositor.plate_for_batch(scene, image)  # the artist's set-up kept
     configure(scene, options)
     render_size(scene)
     name = shot_name(options)

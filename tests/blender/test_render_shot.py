@@ -109,3 +109,51 @@ def test_batch_takes_batch_options(addon, tmp_path):
     batch = importlib.import_module(f"{addon.__name__}.operators.batch")
     with pytest.raises(TypeError, match="BatchOptions"):
         batch.render_shot(SimpleNamespace(plate=str(PLATE), out=str(tmp_path)), 0.0)
+
+
+def test_a_shot_set_up_in_the_panel_renders_as_the_artist_saw_it(addon, tmp_path):
+    """Issue 42: the batch used to call Set Up again, which first undid the artist's: the view
+    transform went back to AgX (the PNG's plate 8.6 levels off) and the ground was deleted. A
+    shot already Set Up keeps its set-up; only the plate is the batch's."""
+    import numpy as np
+
+    compositor = addon_part("operators.compositor")
+    images = addon_part("operators.images")
+    scene = bpy.context.scene
+    add_camera(scene)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 2
+    scene.view_settings.view_transform = "AgX"  # Blender's default: Set Up makes it Standard
+    image = bpy.data.images.load(str(PLATE))
+    record = compositor.setup_from_plate(scene, image, ground=True)
+    assert record["ground"] and scene.view_settings.view_transform == "Standard"
+    ground = record["ground"]["object"] if isinstance(record["ground"], dict) else None
+    shot = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(shot))
+
+    # In this process: the batch's set-up keeps the view, the ground and the record.
+    other = bpy.data.images.load(str(PLATE), check_existing=False)
+    again = compositor.plate_for_batch(scene, other)
+    assert scene.view_settings.view_transform == "Standard"
+    assert again["ground"] == record["ground"] and again["view"] == record["view"]
+    if ground:
+        assert ground in bpy.data.objects
+    assert compositor.undo_setup_from_plate(scene)
+    assert scene.view_settings.view_transform == "AgX"  # Undo still goes back to before
+    assert not any(images.CREATED in o and o.get(images.CREATED) for o in scene.objects)
+
+    # Through the command line: the PNG's plate is the plate (Standard), not AgX's.
+    out = tmp_path / "out"
+    r = run(shot, "--plate", PLATE, "--out", out, "--resolution", 256, "--scale", 10)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    png = read(out / "shot_composite.png")[..., :3]
+    photo = read(PLATE)[..., :3]  # 1280 x 720: at 10 % each output pixel is a 10 x 10 block
+    h, w = png.shape[:2]
+    small = photo.reshape(h, 10, w, 10, 3).mean((1, 3))
+    srgb = lambda lin: np.where(  # noqa: E731
+        lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(np.maximum(lin, 0), 1 / 2.4) - 0.055
+    )
+    sky = slice(0, h // 5)  # above the sphere
+    off = np.median(np.abs(srgb(png[sky]) - srgb(small[sky]))) * 255
+    assert off < 2.0, f"the composite's plate is {off:.1f} levels off (AgX?)"
