@@ -153,7 +153,8 @@ def parser() -> argparse.ArgumentParser:
         default=None,
         metavar="NAME",
         help="the reflective objects (default: those marked in the panel, else every visible "
-        "object with a surface)",
+        "object with a surface but the ground they stand on: a shadow catcher, the chosen "
+        "ground, the floor under them)",
     )
     p.add_argument(
         "--combine",

@@ -48,6 +48,23 @@ def ground_source(scene, depsgraph, objects) -> str:
     return f"Ground: '{ground.name}', the floor under the objects"
 
 
+def grounds_among(scene, depsgraph, objects) -> list:
+    """Those of ``objects`` that are the ground the others stand on, never reflective unless
+    marked (the batch leaves them out when it takes every visible object): the chosen Ground
+    object, every shadow catcher (Set Up's "VR Ground" among them), and the floor under the
+    rest (`floor_under`), the ground `ground_of` reads."""
+    chosen = scene.virtual_reflections.ground_object
+    found = [o for o in objects if o == chosen or getattr(o, "is_shadow_catcher", False)]
+    rest = [o for o in objects if o not in found]
+    for obj in rest:
+        width = max(obj.dimensions.x, obj.dimensions.y)  # cheap first: only flat ones
+        others = [o for o in rest if o != obj]
+        if obj.type == "MESH" and others and obj.dimensions.z <= FLAT * width:
+            if floor_under(scene, depsgraph, others) == obj:
+                found.append(obj)
+    return found
+
+
 FLAT = 0.02  # a mesh whose height is at most this share of its width is a floor
 SUNK = 0.05  # share of the objects' height they may sink into a floor and still stand on it
 
