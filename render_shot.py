@@ -143,7 +143,7 @@ def parse(argv):
 
 def parser() -> argparse.ArgumentParser:
     """The command line's options, each with its help."""
-    p = _Parser(prog="render_shot", description=__doc__.splitlines()[0])
+    p = _Parser(prog="render_shot", description=__doc__.splitlines()[0], allow_abbrev=False)
     p.add_argument("blend", nargs="?", help="the shot (.blend); omit under blender -b shot.blend")
     p.add_argument("--plate", required=True, help="background plate image file")
     p.add_argument("--out", required=True, help="output folder (created)")

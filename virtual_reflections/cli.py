@@ -123,12 +123,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="python -m virtual_reflections",
         description="Environment maps from a plate, after Ropinski et al. 2004.",
+        allow_abbrev=False,  # `--wid` is no `--width`: each option by its whole name
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    p = sub.add_parser("envmap", help="build the environment map of an object on a plate")
+    p = sub.add_parser(
+        "envmap", help="build the environment map of an object on a plate", allow_abbrev=False
+    )
     _add_map_options(p)
     p.add_argument("--float", action="store_true", help="write EXR as 32-bit float (default half)")
-    p = sub.add_parser("segment", help="draw the paper's segmentation over the plate")
+    p = sub.add_parser(
+        "segment", help="draw the paper's segmentation over the plate", allow_abbrev=False
+    )
     _add_map_options(p)
     return parser
 

@@ -150,6 +150,15 @@ def test_bad_options_are_one_line(plate, tmp_path, extra):
     assert time.perf_counter() - started < 20 and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("abbreviation", [("--wid", 64), ("--meth", "paper"), ("--flo",)])
+def test_abbreviated_options_are_refused(plate, tmp_path, abbreviation):
+    # issue 40, row 30: argparse's prefix matching took `--wid` for `--width`.
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *BBOX, *PAPER, *abbreviation)
+    assert r.returncode == 2 and one_line(r), r.stderr
+    assert f"unrecognized arguments: {abbreviation[0]}" in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_negative_bbox_in_exponent_notation(plate, tmp_path):
     # 14: "-1e2" is a number, not an unknown option.
     r = run(
