@@ -39,7 +39,7 @@ def measure(params, plate, repeat):
 
 
 def main():
-    p = argparse.ArgumentParser()
+    p = argparse.ArgumentParser(allow_abbrev=False)
     p.add_argument("--repeat", type=int, default=5)
     args = p.parse_args()
     plate = np.random.default_rng(1).random((1080, 1920, 3), dtype=np.float32)

@@ -31,7 +31,7 @@ def median_ms(call, repeat):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("--objects", type=int, default=3000)
     parser.add_argument("--repeat", type=int, default=20)
     args = parser.parse_args()

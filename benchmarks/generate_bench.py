@@ -127,7 +127,7 @@ def measure(generate, obj, repeat, method):
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = argparse.ArgumentParser(allow_abbrev=False)
     parser.add_argument("--repeat", type=int, default=9)
     parser.add_argument(
         "--method",

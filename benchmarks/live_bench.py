@@ -79,7 +79,7 @@ def stages(reports):
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = argparse.ArgumentParser(allow_abbrev=False)
     parser.add_argument("--steps", type=int, default=90)
     parser.add_argument("--method", choices=("GROUND", "CAMERA", "PAPER"), default="GROUND")
     parser.add_argument("--surroundings", choices=("AUTO", "WORLD"), default="AUTO")

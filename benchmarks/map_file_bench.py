@@ -45,7 +45,7 @@ def describe(path, env):
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = argparse.ArgumentParser(allow_abbrev=False)
     parser.add_argument("--runs", type=int, default=5)
     args = parser.parse_args()
     bpy.ops.wm.read_homefile(use_empty=True)

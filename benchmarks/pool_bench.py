@@ -45,7 +45,7 @@ def copy_rows(pixels, rgba):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     p.add_argument("--repeat", type=int, default=41)
     args = p.parse_args()
     print(

@@ -59,7 +59,7 @@ def full_resolution(env, roughness):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args(argv)
     source = load_equirect(str(hdri_dir() / "sunrise.exr"))[..., :3].astype(np.float32)

@@ -152,7 +152,7 @@ def fmt_s(seconds):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     p.add_argument("--scale", type=int, default=50, help="resolution percentage of 1280 x 720")
     p.add_argument("--samples", type=int, default=16)
     p.add_argument("--repeat", type=int, default=3)

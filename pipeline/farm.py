@@ -350,6 +350,13 @@ def _validate_extra(extra_args):
         option = a.split("=", 1)[0]
         if option in OWNED_OPTIONS:
             raise ValueError(f"{option} is set by the farm for each chunk; leave it out")
+        # Abbreviations too: a render_shot with argparse's prefix matching took `--ou` for `--out`.
+        owned = [o for o in OWNED_OPTIONS if len(option) > 2 and o.startswith(option)]
+        if option.startswith("--") and owned:
+            raise ValueError(
+                f"{option} is an abbreviation of {' or '.join(owned)}, which the farm sets for "
+                "each chunk; leave it out"
+            )
 
 
 def run_farm(
@@ -506,6 +513,7 @@ def parse(argv):
         prog="python -m pipeline.farm",
         description=__doc__.splitlines()[0],
         epilog="Arguments after -- go to render_shot for every chunk (e.g. -- --samples 64).",
+        allow_abbrev=False,  # `--ou` is no `--out`: each option by its whole name
     )
     p.add_argument("--scheduler", required=True, help="Dask scheduler address, tcp://host:8786")
     p.add_argument("shot", help="the shot (.blend), on shared storage")

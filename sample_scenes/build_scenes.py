@@ -710,7 +710,9 @@ def new_file():
 
 
 def parse(argv=None):
-    p = argparse.ArgumentParser(prog="build_scenes", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="build_scenes", description=__doc__.splitlines()[0], allow_abbrev=False
+    )
     p.add_argument("--scene", choices=(*SCENES, "all"), default="all")
     p.add_argument("--plate", default="courtyard", help="courtyard, city, sunset or an image path")
     p.add_argument("--out", default=str(HERE.parent / "out" / "scenes"), help="output folder")

@@ -151,7 +151,9 @@ def letter_regions(picture, seg, scale, size):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(prog="make_pictures", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="make_pictures", description=__doc__.splitlines()[0], allow_abbrev=False
+    )
     p.add_argument("--out", default=str(ROOT / "docs" / "images"))
     p.add_argument("--samples", type=int, default=32)
     p.add_argument("--width", type=int, default=960, help="side-by-side width in pixels")

@@ -161,7 +161,7 @@ def contact_sheet(path, entries, column=320, gap=6, label_height=22):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("--hdri-dir", type=pathlib.Path, help="default: the bpy studiolights")
     parser.add_argument("--out", type=pathlib.Path, default=ROOT / "sample_scenes" / "plates")
     parser.add_argument(

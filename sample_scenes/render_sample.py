@@ -51,7 +51,9 @@ def load_build_scenes():
 
 def parse(argv=None):
     build_scenes = load_build_scenes()
-    p = argparse.ArgumentParser(prog="render_sample", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="render_sample", description=__doc__.splitlines()[0], allow_abbrev=False
+    )
     p.add_argument("--scene", choices=(*build_scenes.SCENES, "all"), default="spheres")
     p.add_argument("--plate", default="courtyard", help="courtyard, city, sunset or an image")
     p.add_argument("--out", default="out", help="output folder (created)")

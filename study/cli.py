@@ -50,14 +50,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="python -m study",
         description="Accuracy and speed of Virtual Reflections' environment maps.",
+        allow_abbrev=False,
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    p = sub.add_parser("bench", help="time table building and applying against py360convert")
+    p = sub.add_parser(
+        "bench", help="time table building and applying against py360convert", allow_abbrev=False
+    )
     p.add_argument("--repeat", type=_positive, default=15, help="runs per figure (median)")
     p.add_argument(
         "--chart", metavar="PNG", help="also chart time and memory against map and plate size"
     )
-    p = sub.add_parser("evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)")
+    p = sub.add_parser(
+        "evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)", allow_abbrev=False
+    )
     p.add_argument("--quick", action="store_true", help="a one-minute subset: print the ranking")
     p.add_argument(
         "--out",
@@ -67,7 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
-    p = sub.add_parser("scenes", help="3D scenes path-traced in Cycles (docs/scenes3d.md)")
+    p = sub.add_parser(
+        "scenes", help="3D scenes path-traced in Cycles (docs/scenes3d.md)", allow_abbrev=False
+    )
     p.add_argument("--quick", action="store_true", help="two scenes, small: print the means")
     p.add_argument(
         "--out",
@@ -154,7 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --mirror-only: Cycles samples per pixel (default 32)",
     )
     p = sub.add_parser(
-        "sky-prior", help="the ground method's sky gain from the HDRIs (docs/ground.md)"
+        "sky-prior",
+        help="the ground method's sky gain from the HDRIs (docs/ground.md)",
+        allow_abbrev=False,
     )
     p.add_argument(
         "--polyhaven",

@@ -18,6 +18,12 @@ Rules:
    add-on's `operators`, `ui`, `preferences` or its root `__init__.py`;
 4. the product never imports a research package: `study`, `benchmarks`, `tests`, or any other
    top-level package of the repository that is not part of the product.
+
+And one rule on every Python file of the repository (hidden folders such as `.venv` aside):
+5. every command-line parser (`argparse.ArgumentParser(...)`, a subclass of it defined in the
+   file, a sub-command's `add_parser(...)`) passes `allow_abbrev=False`: argparse's prefix
+   matching takes `--ou` for `--out`, which bypassed the farm's refusal of `--out` after `--`
+   (issue 40, row 30).
 """
 
 from __future__ import annotations
@@ -527,4 +533,70 @@ def test_engine_and_research_rules(tmp_path):
         "operators/x.py:1 imports tests (helpers) (the product must not import research code)",
         "preferences.py:2 imports study/runs.py (the product must not import research code)",
         "ui/__init__.py:1 imports benchmarks.speed (the product must not import research code)",
+    ]
+
+
+# --- rule 5: no abbreviated options ----------------------------------------------------------
+
+
+def python_files(root: Path) -> list[Path]:
+    """Every .py file under root, hidden folders (.venv, .git) and SKIP_DIRS aside."""
+    return [
+        path
+        for path in sorted(root.rglob("*.py"))
+        if not any(p in SKIP_DIRS or p.startswith(".") for p in path.relative_to(root).parts)
+    ]
+
+
+def _called_name(func: ast.expr) -> str | None:
+    return func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+
+
+def abbreviating_parsers(root: Path) -> list[str]:
+    """`file:line` of each parser made without `allow_abbrev=False` (rule 5)."""
+    problems = []
+    for path in python_files(root):
+        where = path.relative_to(root).as_posix()
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=where)
+        parsers = {"ArgumentParser"} | {
+            node.name
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ClassDef)
+            and any(_called_name(base) == "ArgumentParser" for base in node.bases)
+        }
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Call):
+                continue
+            name = _called_name(node.func)
+            if name in parsers or (name == "add_parser" and isinstance(node.func, ast.Attribute)):
+                if not any(
+                    k.arg == "allow_abbrev"
+                    and isinstance(k.value, ast.Constant)
+                    and k.value.value is False
+                    for k in node.keywords
+                ):
+                    problems.append(f"{where}:{node.lineno} {name}(...)")
+    return problems
+
+
+def test_no_parser_takes_abbreviated_options():
+    problems = abbreviating_parsers(REPO)
+    assert not problems, _report("parsers without allow_abbrev=False (add it)", problems)
+
+
+def test_the_parser_rule_sees_subclasses_and_sub_commands(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "a.py": "import argparse\nclass P(argparse.ArgumentParser):\n    pass\n"
+            "p = P(prog='a')\nq = argparse.ArgumentParser(allow_abbrev=False)\n"
+            "s = q.add_subparsers().add_parser('x')\n",
+            "b/c.py": "from argparse import ArgumentParser\nArgumentParser(allow_abbrev=True)\n",
+            ".venv/d.py": "import argparse\nargparse.ArgumentParser()\n",
+        },
+    )
+    assert abbreviating_parsers(root) == [
+        "a.py:4 P(...)",
+        "a.py:6 add_parser(...)",
+        "b/c.py:2 ArgumentParser(...)",
     ]

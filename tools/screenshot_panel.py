@@ -35,7 +35,7 @@ WAIT_FOR_SHOT = 60.0  # seconds
 
 def _args():
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
-    p = argparse.ArgumentParser(prog="screenshot_panel")
+    p = argparse.ArgumentParser(prog="screenshot_panel", allow_abbrev=False)
     p.add_argument("--handshake", required=True, help="folder shared with tools/screenshot-panel")
     return p.parse_args(argv)
 

@@ -53,6 +53,20 @@ def test_parse_needs_no_bpy():
     assert r.returncode == 0 and r.stdout.strip() == "1-3", r.stderr
 
 
+@pytest.mark.parametrize(
+    "abbreviation", [["--ou", "elsewhere"], ["--pla=p2.exr"], ["--rep", "r.json"], ["--fra", "2"]]
+)
+def test_abbreviated_options_are_refused(render_shot, capsys, abbreviation):
+    """issue 40, row 30: argparse took `--ou` for `--out` (the last one won), so a farm's
+    refusal of `--out` after `--` was bypassed; render_shot knows only whole option names."""
+    with pytest.raises(SystemExit) as exit:
+        render_shot.parse([*BASE, *abbreviation])
+    assert exit.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("render_shot: error: unrecognized arguments: " + abbreviation[0])
+
+
 def test_every_option_says_what_it_does(render_shot):
     """render_shot --help: a TD reads what each option does, and its default where the shot's
     own setting is kept."""

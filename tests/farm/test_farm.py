@@ -126,6 +126,13 @@ def cli(*args, timeout=120):
         (("--frames", "1-4", "--chunk", "0"), "chunk size"),
         (("--frames", "1-4", "--", "--frames", "2"), "--frames is set by the farm"),
         (("--frames", "1-4", "--", "--out=elsewhere"), "--out is set by the farm"),
+        # issue 40, row 30: abbreviations of the farm's options (argparse took `--ou` for `--out`)
+        (("--frames", "1-4", "--", "--ou", "elsewhere"), "--ou is an abbreviation of --out"),
+        (("--frames", "1-4", "--", "--pla=p2"), "--pla is an abbreviation of --plate"),
+        (("--frames", "1-4", "--", "--rep", "r.json"), "--rep is an abbreviation of --report"),
+        (("--frames", "1-4", "--", "--fr", "2"), "--fr is an abbreviation of --frame"),
+        (("--frames", "1-4", "--ou", "elsewhere"), "unrecognized arguments: --ou elsewhere"),
+        (("--frames", "1-4", "--chu", "2"), "unrecognized arguments: --chu 2"),
         (("--frames", "1-4", "--blender", "b", "--bpy"), "not allowed with"),
         (("--frames", "1-4", "--extension", "/nowhere"), "no render_shot.py"),
         (("--frames", "1-4"), "shot not found: "),
@@ -184,7 +191,7 @@ FAKE = textwrap.dedent(
             return False
         return bool(marker)
 
-    p = argparse.ArgumentParser()
+    p = argparse.ArgumentParser(allow_abbrev=False)
     for option in ("--plate", "--out", "--frames", "--report", "--name"):
         p.add_argument(option)
     p.add_argument("blend")
@@ -309,6 +316,10 @@ def test_run_farm_refuses_options_it_owns(client, fake, tmp_path):
             1,
             command_prefix=prefix,
             extra_args=["--report", "x"],
+        )
+    with pytest.raises(ValueError, match="--rep is an abbreviation of --report"):
+        farm.run_farm(
+            client, shot, plate, tmp_path, "1", 1, command_prefix=prefix, extra_args=["--rep", "x"]
         )
 
 
