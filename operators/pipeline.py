@@ -306,10 +306,14 @@ def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None
 
 def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=None):
     """Each object's screen box in plate pixels -> ({object: (x0, y0, x1, y1)}, {object: extent
-    in render pixels}, [one-line problems]). Objects without geometry or outside the camera's
-    view are left out and named in the problems ("<name> is outside the camera view:
-    <outside>"). ``progress`` is called with the index of each object done."""
+    in pixels of the full-size render}, [one-line problems]). Objects without geometry or
+    outside the camera's view are left out and named in the problems ("<name> is outside the
+    camera view: <outside>"). ``progress`` is called with the index of each object done.
+
+    The extent is at Resolution 100 %: Auto sizes a map for the render it stays for, not for
+    a preview at 50 % (nor for a 200 % one)."""
     boxes, extents, problems = {}, {}, []
+    full_size = 100.0 / scene.render.resolution_percentage
     for i, obj in enumerate(objects):
         try:
             box = bounds.object_bounds(obj, depsgraph, scene, projection=view.projection)
@@ -320,7 +324,7 @@ def object_boxes(view, scene, depsgraph, objects, outside="skipped", progress=No
             problems.append(f"{obj.name} is outside the camera view: {outside}")
             continue
         boxes[obj] = scale_box((box.x0, box.y0, box.x1, box.y1), *view.scale)
-        extents[obj] = box.extent()
+        extents[obj] = box.extent() * full_size
         if progress:
             progress(i)
     return boxes, extents, problems

@@ -180,6 +180,18 @@ def test_auto_resolution_generates_a_map_sized_for_the_object(addon):
     assert tuple(bpy.data.images["VR Map Ball"].size) == (2048, 1024)
 
 
+def test_auto_resolution_is_for_the_full_size_render(addon):
+    """A Generate during a 50 % preview sizes the map for the 100 % render that follows (the
+    map stays), not for the preview: the same width as at 100 %."""
+    scene, ball = make_shot(resolution="AUTO", generate=False)
+    scene.render.resolution_x, scene.render.resolution_y = 960, 640  # ~345 px: 2048
+    generate = addon_part("operators.generate").generate
+    for percent in (50, 25, 100):
+        scene.render.resolution_percentage = percent
+        generate(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball])
+        assert tuple(bpy.data.images["VR Map Ball"].size) == (2048, 1024), percent
+
+
 def test_warnings_near_the_border_and_for_a_huge_object(addon):
     generate = addon_part("operators.generate")
     scene, ball = make_shot(location=(3.2, 0.0, 0.0), generate=False)  # at the right edge
