@@ -192,7 +192,7 @@ def steps(scene, depsgraph, objects, pixels=None):
 
     if settings.combine == "WORLD" and jobs:
         with report.timed("image"):
-            world_map = maps.store_map(maps.WORLD_MAP, envs[0], save_dir)
+            world_map = _store(maps.WORLD_MAP, envs[0], save_dir, report)
         with report.timed("wiring"):
             for obj in boxes:
                 try:
@@ -207,7 +207,7 @@ def steps(scene, depsgraph, objects, pixels=None):
 
     for (_, obj, box, _, _, _), env in zip(jobs, envs, strict=True):
         with report.timed("image"):
-            image_map = maps.store_map(maps.map_name(obj.name), env, save_dir)
+            image_map = _store(maps.map_name(obj.name), env, save_dir, report)
         with report.timed("wiring"):
             ground = pipeline.ground_lookup(view, scene, depsgraph, [obj], image)
             shift = pipeline.lobe_shift(scene, [obj])
@@ -230,6 +230,14 @@ def steps(scene, depsgraph, objects, pixels=None):
         report.done.append(obj.name)
     remove_orphans()
     return report
+
+
+def _store(name, env, save_dir, report):
+    """`maps.store_map`, and a warning when the map's saved file was missing (made again)."""
+    missing = maps.missing_file(bpy.data.images.get(name))
+    if missing:
+        report.warnings.append(f"{missing}: made again")
+    return maps.store_map(name, env, save_dir)
 
 
 class Job:

@@ -131,6 +131,11 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     atomic_files.ImageError (a ValueError) when the file cannot be written."""
     h, w = env.shape[:2]
     image = images.own_image(name, w, h, kind)
+    if missing_file(image):  # its file is gone (it would load nothing): start it afresh
+        image.source = "GENERATED"
+        image.use_generated_float = True
+        image.generated_width, image.generated_height = w, h
+        images.set_linear(image)
     image.use_fake_user = True  # kept with the .blend even while no material uses it
     images.write_pixels(image, env)
     image.file_format = "OPEN_EXR"
@@ -140,7 +145,7 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
         write_map(path, env, _layout(kind))  # atomic: a previous map stays until this is whole
         if image.packed_file:
             image.unpack(method="REMOVE")
-        _read_from(image, path)
+        _read_from(image, _beside_relative(path))
         image[NEEDS_PACK] = False
     else:
         image[NEEDS_PACK] = True  # packed when the .blend is saved (pack_pending)
@@ -148,6 +153,34 @@ def store_map(name: str, env: np.ndarray, save_dir: str | None = None, kind: str
     undo_pixels.remember(image, env)  # undo and redo bring these pixels back
     touch(image)
     return image
+
+
+def _beside_relative(path: str) -> str:
+    """``path`` as the image keeps it: "//"-relative when it is in the saved .blend's folder
+    (the shot's folder, vr_maps/ with it, moves as one and its maps still load), else as it
+    is (the user folder, which stays on this machine)."""
+    blend = bpy.data.filepath
+    if not blend:
+        return path
+    home = os.path.dirname(os.path.abspath(blend))
+    try:
+        inside = os.path.commonpath([home, os.path.abspath(path)]) == home
+    except ValueError:  # another drive
+        inside = False
+    return bpy.path.relpath(path) if inside else path
+
+
+def missing_file(image) -> str | None:
+    """One line when ``image``, a map (or composite) saved as a file, cannot find its file
+    (the file deleted, or the shot moved without it), else None. Blender would render it
+    magenta; Generate makes it again."""
+    if image is None or images.created(image) is None:
+        return None
+    if image.source != "FILE" or image.packed_file or not image.filepath:
+        return None
+    if os.path.isfile(bpy.path.abspath(image.filepath, library=image.library)):
+        return None
+    return f"map '{image.name}': its file {image.filepath} is missing"
 
 
 def _layout(kind: str) -> str | None:
@@ -224,6 +257,16 @@ def _pack_before_save(*_args):
     pack_pending()
 
 
+@bpy.app.handlers.persistent
+def _say_missing_after_load(*_args):
+    """A .blend opened with maps whose files are gone: one line each on the console, so it
+    is known before a render shows them magenta (the object's panel says it too)."""
+    for image in bpy.data.images:
+        note = missing_file(image)
+        if note:
+            print(f"Virtual Reflections: {note}; Generate makes it again")
+
+
 def orphans(in_use) -> list:
     """The add-on's maps that no object reflects any more (its object was deleted or renamed
     and generated again), given the images ``in_use``."""
@@ -236,11 +279,16 @@ def remove_maps():
     return images.remove_created(("map", "overlay", "composite"))
 
 
+_HANDLERS = (("save_pre", _pack_before_save), ("load_post", _say_missing_after_load))
+
+
 def register():
-    if _pack_before_save not in bpy.app.handlers.save_pre:
-        bpy.app.handlers.save_pre.append(_pack_before_save)
+    for name, function in _HANDLERS:
+        if function not in getattr(bpy.app.handlers, name):
+            getattr(bpy.app.handlers, name).append(function)
 
 
 def unregister():
-    if _pack_before_save in bpy.app.handlers.save_pre:
-        bpy.app.handlers.save_pre.remove(_pack_before_save)
+    for name, function in _HANDLERS:
+        while function in getattr(bpy.app.handlers, name):
+            getattr(bpy.app.handlers, name).remove(function)

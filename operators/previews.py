@@ -175,6 +175,10 @@ def for_object(scene, obj):
     raises."""
     image = shading.map_of(obj)
     out = {"map": None, "overlay": None, "both": None, "advice": [], "image": image}
+    missing = maps.missing_file(image)
+    if missing:  # nothing to show (Blender would render it magenta): say so, and what to do
+        out["advice"] = [f"{missing}: Generate makes it again"]
+        return out
     if _collection is None or image is None:
         return out
     try:

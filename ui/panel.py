@@ -172,7 +172,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
             unit = 20 * context.preferences.system.ui_scale
             scale = max(6.0, (context.region.width - 2 * unit) / unit)
             layout.template_icon(icon_value=shown["both"].icon_id, scale=scale)
-        else:
+        elif not maps.missing_file(image):  # a missing map's file: its advice says so
             layout.label(text="No plate to show", icon="ERROR")
         if scene.virtual_reflections.method != "PAPER":
             layout.label(text="Regions: the paper's, for reference", icon="INFO")

@@ -1,6 +1,7 @@
 """The batch and a shot whose maps are saved as files (issue 40): the batch writes nothing
 outside --out, never the shot's own maps, even where the shot's folder is read-only (a farm)."""
 
+import json
 import os
 import pathlib
 import shutil
@@ -84,3 +85,43 @@ def test_batch_leaves_a_read_only_shots_saved_maps_alone(saved_maps_shot, tmp_pa
     # The maps the batch made are under --out.
     made = sorted(p.name for p in (out / "vr_maps").rglob("*.exr"))
     assert made == ["VR_Map_Sphere.exr"], made
+
+
+def sphere_rgb(path):
+    """Mean RGB of the frame's middle third (the sphere) of a render."""
+    from sequence_shots import read
+
+    pixels = read(path)
+    h, w = pixels.shape[:2]
+    return pixels[h // 3 : 2 * h // 3, w // 3 : 2 * w // 3, :3].reshape(-1, 3).mean(0)
+
+
+@pytest.mark.parametrize("frames", [None, "2"], ids=["one frame", "frame range"])
+def test_batch_makes_a_missing_saved_map_again_and_says_so(saved_maps_shot, tmp_path, frames):
+    """The shot's saved map deleted (or left behind when the shot moved): the batch says so
+    and makes it again, never a magenta sphere."""
+    blend, plates = saved_maps_shot
+    (blend.parent / "vr_maps" / "VR_Map_Sphere.exr").unlink()
+    out = tmp_path / "out"
+    if frames is None:
+        args, render = ("--plate", plates[1]), out / "shot_render.exr"
+    else:
+        pattern = str(plates[0]).replace("0001", "####")
+        args, render = ("--plate", pattern, "--frames", frames), out / "shot_render.0002.exr"
+    r = subprocess.run(
+        [sys.executable, "-m", "render_shot", blend, *map(str, args), "--out", out],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    if frames is None:  # one frame: its log; a range: its report
+        said = [line for line in r.stdout.splitlines() if "warning: " in line]
+    else:
+        said = json.loads((out / "shot.report.json").read_text())["warnings"]
+    said = [line for line in said if "missing" in line]
+    assert said and "VR Map Sphere" in said[0] and "made again" in said[0], r.stdout[-2000:]
+    red, green, blue = sphere_rgb(render)
+    assert green > red and green > blue  # plate 2 is green; a missing map renders magenta
+    assert not list(blend.parent.glob("vr_maps/*"))  # nothing written beside the shot

@@ -175,3 +175,63 @@ def test_unsaved_files_keep_their_own_maps_in_the_user_folder(user_folder):
     for path, value in zip(paths, (0.25, 0.75), strict=True):
         pixels, _ = read_back(path)
         np.testing.assert_allclose(pixels, value, atol=1e-3)
+
+
+def files_shot(folder):
+    """folder/shot.blend, its Ball's map saved beside it (folder/vr_maps/); returns the map's
+    pixels (H, W, 3)."""
+    scene = bpy.context.scene
+    add_camera(scene, size=(64, 48))
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)
+    ball = bpy.context.active_object
+    ball.name = "Ball"
+    scene.virtual_reflections.plate_image = plate = ramp_plate()
+    plate.pack()  # kept in the .blend: a reopened shot makes the same map
+    scene.virtual_reflections.resolution = "256"
+    scene.virtual_reflections.map_storage = "FILES"
+    folder.mkdir(parents=True, exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=str(folder / "shot.blend"))
+    bpy.ops.object.select_all(action="DESELECT")
+    ball.select_set(True)
+    assert bpy.ops.vr.generate() == {"FINISHED"}, scene.virtual_reflections.last_report
+    env = images.read_pixels(bpy.data.images["VR Map Ball"])[..., :3].copy()
+    bpy.ops.wm.save_as_mainfile(filepath=str(folder / "shot.blend"))
+    return env
+
+
+def test_a_moved_shot_finds_its_saved_maps(addon, tmp_path):
+    """The shot's folder (.blend + vr_maps/) moved elsewhere: its maps still load (issue 40)."""
+    env = files_shot(tmp_path / "before")
+    image = bpy.data.images["VR Map Ball"]
+    assert image.filepath.startswith("//"), image.filepath
+    (tmp_path / "before").rename(tmp_path / "after")
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "after" / "shot.blend"))
+    image = bpy.data.images["VR Map Ball"]
+    assert image.filepath.startswith("//"), image.filepath
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=2e-3, atol=1e-3)
+    assert image.has_data and maps.missing_file(image) is None
+
+
+def test_a_missing_saved_map_is_said_and_made_again(addon, tmp_path, capsys):
+    """A saved map's file deleted: opening says so, the panel says so, Generate makes it again
+    (its warning says so too), never a magenta map."""
+    env = files_shot(tmp_path)
+    path = tmp_path / "vr_maps" / "VR_Map_Ball.exr"
+    path.unlink()
+    capsys.readouterr()
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
+    said = capsys.readouterr().out
+    assert "VR Map Ball" in said and "missing" in said and "Generate" in said, said
+    image = bpy.data.images["VR Map Ball"]
+    note = maps.missing_file(image)
+    assert note and "missing" in note and "VR_Map_Ball.exr" in note, note
+    ball = bpy.data.objects["Ball"]
+    advice = addon_part("operators.previews").for_object(bpy.context.scene, ball)["advice"]
+    assert advice == [f"{note}: Generate makes it again"]  # what the object's panel says
+    report = addon_part("operators.generate").generate(
+        bpy.context.scene, bpy.context.evaluated_depsgraph_get(), [ball]
+    )
+    assert report.done == ["Ball"]
+    assert any("missing" in w and "VR Map Ball" in w for w in report.warnings), report.warnings
+    assert path.exists() and maps.missing_file(image) is None
+    np.testing.assert_allclose(images.read_pixels(image)[..., :3], env, rtol=2e-3, atol=1e-3)
