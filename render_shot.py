@@ -8,27 +8,30 @@ The first form is the extension's command (`register`, bpy.utils.register_cli_co
 need to know where the extension is installed; Blender exits with the run's exit code.
 
 One frame (a still plate, no --frames): writes DIR/<shot>_render.exr (RGBA, linear),
-DIR/<shot>_composite.png (sRGB) and .exr (linear), one line per stage with its time.
+DIR/<shot>_composite.png (sRGB) and .exr (linear), one line per stage with its time, and the
+report DIR/<shot>.report.json (--report PATH) of that one frame.
 
 A frame range (--frames 1-240, 1..240 as Blender's -f, 1-10x2, 5, 1,3,7-9; or a plate that is
-a sequence plate.####.exr / plate.%04d.jpg or a movie, then the scene's range by default): per
-frame the maps from that frame's plate, the composite DIR/<shot>.<frame:04d>.exr|png
-(--format; PNG through the scene's view transform, named in the report), the CG element
-DIR/<shot>_render.<frame:04d>.exr (the render alone, RGBA scene-linear), a progress line, and
-the report DIR/<shot>.report.json (--report PATH) rewritten after each frame. Frames already
-complete, and made by the same inputs (a record per frame: the plate file, the settings, the
-extension's version; operators/batch_record.py), are skipped unless --overwrite; a complete
-frame made by other inputs is rendered again and the report says why. Every file is written
-under a temporary name and renamed, so a killed run leaves no half-written frame and resumes
-where it stopped.
+a sequence plate.####.exr / plate.%04d.jpg, unless a file of that very name exists, or a movie,
+then the scene's range by default): per frame the maps from that frame's plate, the composite
+DIR/<shot>.<frame:04d>.exr|png (--format; PNG through the scene's view transform, named in the
+report), the CG element DIR/<shot>_render.<frame:04d>.exr (the render alone, RGBA
+scene-linear), a progress line, and the report DIR/<shot>.report.json (--report PATH)
+rewritten after each frame. Frames already complete, and made by the same inputs (a record per
+frame: the plate file, the settings, the extension's version; operators/batch_record.py), are
+skipped unless --overwrite; a complete frame made by other inputs is rendered again and the
+report says why. Every file is written under a temporary name and renamed, so a killed run
+leaves no half-written frame and resumes where it stopped.
 
 Options: --objects NAME [NAME ...] (default: marked objects, else every visible mesh-like
 object), --combine REPLACE|MODULATE|MIX|WORLD, --resolution W, --triangles N, --frame F,
 --engine CYCLES|EEVEE, --samples N, --scale PERCENT, --smoothing S (bounds over frames, 0..1),
 --passes N|auto (inter-reflections between the objects, paper §3.3: N render passes, or until
 the image settles; --tolerance T, --max-passes N), --no-reflections (the plain render, for
-comparisons), --name STEM. Bad input (a bad range, a missing plate frame, an unwritable
-folder): one line on stderr, exit code 2, nothing written.
+comparisons), --name STEM (not ending in _render or _composite: those are the batch's own
+files). Bad input (a bad range, a missing plate frame, an unwritable folder, a --report that
+is an input, an output or a file other than a report): one line on stderr, exit code 2,
+nothing written.
 
 The options go to the batch (operators/batch.py) as one `BatchOptions`
 (operators/batch_options.py), checked when it is made, right after parsing.
@@ -225,7 +228,7 @@ def parser() -> argparse.ArgumentParser:
         "--engine", choices=("CYCLES", "EEVEE"), default=None, help="default: the shot's"
     )
     p.add_argument("--samples", type=int, default=None, help="render samples (default: the shot's)")
-    p.add_argument("--scale", type=int, default=None, help="resolution percentage")
+    p.add_argument("--scale", type=int, default=None, help="resolution percentage, 1 to 10000")
     p.add_argument(
         "--passes", type=_passes, default=1, help="inter-reflection passes r, or auto (default 1)"
     )
@@ -240,7 +243,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", default=None, help="1-240, 1..240, 1-10x2, 5 or 1,3,7-9")
     p.add_argument("--format", choices=("exr", "png"), default="exr", help="frame range output")
     p.add_argument("--overwrite", action="store_true", help="render complete frames again")
-    p.add_argument("--report", default=None, help="report path (default DIR/<name>.report.json)")
+    p.add_argument(
+        "--report",
+        default=None,
+        help="report path (default DIR/<name>.report.json); never an input, an output of the "
+        "run or a file other than an earlier report",
+    )
     p.add_argument("--smoothing", type=_unit, default=None, help="bounds smoothing 0..0.95")
     return p
 

@@ -28,11 +28,12 @@ from ..virtual_reflections.atomic_files import (
     temp_path,
 )
 from ..virtual_reflections.composite import over, resize_nearest
+from ..virtual_reflections.frames import parse_frames
 from ..virtual_reflections.imagefiles import write_rgba
 from . import compositor, generate, interreflect, plate
 from .batch_frames import PlateSource, render_frames
 from .batch_lock import OutputLock
-from .batch_options import BatchOptions
+from .batch_options import BatchOptions, check_name
 from .batch_render import (
     BatchError,
     artist_compositor,
@@ -47,6 +48,7 @@ from .batch_render import (
     shot_objects,
     write_image,
 )
+from .batch_report import check_report_path, report_file, run_report, write_json
 from .batch_signals import raise_if_signalled
 
 
@@ -58,6 +60,7 @@ def render_shot(options: BatchOptions, started):
     scene = bpy.context.scene
     if scene.camera is None:
         raise ValueError(f"scene {scene.name!r} has no camera")
+    check_up_front(scene, options)
     source = PlateSource(options.plate)
     if options.frames is not None or source.kind != "still":
         return render_frames(options, started, source)
@@ -74,22 +77,76 @@ def render_shot(options: BatchOptions, started):
         os.path.abspath(os.path.join(options.out, f"{name}{suffix}"))
         for suffix in ("_render.exr", "_composite.png", "_composite.exr")
     ]
-    not_a_plate(outs, [options.plate])
+    out = os.path.abspath(options.out)
+    report = report_file(options.report, out, name)
+    check_report_path(report, out, name, [bpy.data.filepath, os.path.abspath(options.plate)])
+    not_a_plate([*outs, report], [options.plate])
     check_folder(options.out)
-    with OutputLock(os.path.abspath(options.out), name):
-        remove_stale_temps(
-            os.path.abspath(options.out),
-            [os.path.splitext(os.path.basename(o))[0] for o in outs],
-            live_ok=True,
-        )
+    if os.path.dirname(report) != out:
+        check_folder(os.path.dirname(report))
+    with OutputLock(out, name):
+        remove_stale_temps(out, [os.path.splitext(os.path.basename(o))[0] for o in outs], True)
+        remove_stale_temps(os.path.dirname(report), [os.path.splitext(os.path.basename(report))[0]])
         try:
-            return _one_frame(scene, options, image, name, started)
+            entry = _one_frame(scene, options, image, name, started)
         except OSError as exc:  # a write failed (a full disk): not bad input
             raise BatchError(f"{exc.strerror or exc}: {exc.filename or options.out}") from exc
+        entry.update(frame=scene.frame_current, plate=os.path.abspath(options.plate), outputs=outs)
+        header = _one_frame_header(scene, options, name, out)
+        frames = [scene.frame_current]
+        write_json(report, run_report(header, {frames[0]: entry}, frames, [], started, True))
+        return 0
+
+
+def check_up_front(scene, options):
+    """What both modes refuse before anything is opened or written (exit code 2): a default
+    name (the .blend's) that --name would refuse, frames outside Blender's range (it would
+    render its last frame instead), and --passes with Combine World (the shot's or
+    --combine)."""
+    if options.name is None:
+        check_name(shot_name(options), "the shot's name (the default --name)")
+    frame = bpy.types.Scene.bl_rna.properties["frame_current"]
+    low, high = frame.hard_min, frame.hard_max
+    if options.frames is not None:
+        frames, what = parse_frames(options.frames), "--frames"
+    else:
+        frames, what = ([] if options.frame is None else [options.frame]), "--frame"
+    for f in frames[:1] + frames[-1:]:
+        if not low <= f <= high:
+            raise ValueError(f"{what}: frame {f} is outside Blender's frames {low} to {high}")
+    if not options.no_reflections and options.passes != 1:
+        combine = options.combine or scene.virtual_reflections.combine
+        interreflect.check_combine(
+            combine, options.passes, options.max_passes or interreflect.R_MAX
+        )
+
+
+def _one_frame_header(scene, options, name, out):
+    """What the one-frame report says of the run (the frame range's keys that apply)."""
+    engine = scene.render.engine
+    return {
+        "version": 1,
+        "shot": bpy.data.filepath,
+        "scene": scene.name,
+        "name": name,
+        "plate": options.plate,
+        "plate_kind": "still",
+        "out": out,
+        "format": "exr and png",
+        "requested": None,
+        "blender": bpy.app.version_string,
+        "render": {
+            "engine": engine,
+            "size": list(render_size(scene)),
+            "samples": scene.cycles.samples if engine == "CYCLES" else None,
+        },
+        "reflections": {"enabled": not options.no_reflections, "passes": options.passes},
+    }
 
 
 def _one_frame(scene, options, image, name, started):
-    """One frame's render and composites (render_shot without --frames)."""
+    """One frame's render and composites (render_shot without --frames); returns its report
+    entry (without frame, plate and outputs)."""
     stamp = lambda: f"{time.perf_counter() - started:6.2f} s"  # noqa: E731
     print(
         f"[{stamp()}] plate {image.name} {image.size[0]}x{image.size[1]}, "
@@ -102,7 +159,7 @@ def _one_frame(scene, options, image, name, started):
     passes = options.passes
     if not options.no_reflections and passes != 1:
         render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
-        comp = _render_shot_passes(
+        comp, reports = _render_shot_passes(
             scene,
             shot_objects(scene, options.objects),
             passes,
@@ -110,8 +167,9 @@ def _one_frame(scene, options, image, name, started):
             log=lambda line: print(f"[{stamp()}] {line}"),
         )
         _save_composite(scene, comp, options.out, name, stamp, time.perf_counter())
-        return 0
+        return _entry(started, list(reports[0].warnings), f"{len(reports)} pass(es)")
 
+    warnings, summary = [], "no reflections"
     if not options.no_reflections:
         objects = shot_objects(scene, options.objects)
         if not objects:
@@ -122,6 +180,7 @@ def _one_frame(scene, options, image, name, started):
         if not report.done:
             raise ValueError("no reflection generated: " + "; ".join(report.warnings))
         print(f"[{stamp()}] reflections: {report.summary()}")
+        warnings, summary = list(report.warnings), report.summary()
 
     t = time.perf_counter()
     render_path = os.path.abspath(os.path.join(options.out, f"{name}_render.exr"))
@@ -137,7 +196,17 @@ def _one_frame(scene, options, image, name, started):
         pixels, _ = plate.pixels(scene, image)
         comp = over(rgba, resize_nearest(pixels, *rgba.shape[:2]))
     _save_composite(scene, comp, options.out, name, stamp, t)
-    return 0
+    return _entry(started, warnings, summary)
+
+
+def _entry(started, warnings, summary):
+    seconds = round(time.perf_counter() - started, 4)
+    return {
+        "status": "rendered",
+        "times": {"total": seconds},
+        "warnings": warnings,
+        "summary": summary,
+    }
 
 
 def _render_to(scene, path, use_compositor=False):
@@ -158,7 +227,7 @@ def _render_to(scene, path, use_compositor=False):
 def _render_shot_passes(scene, objects, passes, render_path, log=print):
     """``--passes`` for one frame: `interreflect.render_passes` on the scene's plate, the last
     render written to ``render_path`` (RGBA float EXR, scene-linear), one log line per pass.
-    Returns the (h, w, 3) float32 composite."""
+    Returns the (h, w, 3) float32 composite and the passes' reports."""
     if not objects:
         raise ValueError("no object to reflect the plate (use --objects or mark objects)")
     pixels, _ = plate.pixels(scene)
@@ -174,7 +243,7 @@ def _render_shot_passes(scene, objects, passes, render_path, log=print):
         log(report.line())
     log(f"{len(reports)} pass(es) in {sum(r.seconds for r in reports):.2f} s")
     write_rgba(render_path, rgba)
-    return composite
+    return composite, reports
 
 
 def _save_composite(scene, comp, out, name, stamp, t):

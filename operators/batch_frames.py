@@ -45,7 +45,15 @@ from .batch_render import (
     shot_objects,
     write_image,
 )
-from .batch_report import one_line, pass_report, read_report, run_report, write_json
+from .batch_report import (
+    check_report_path,
+    one_line,
+    pass_report,
+    read_report,
+    report_file,
+    run_report,
+    write_json,
+)
 from .batch_signals import raise_if_signalled
 
 FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}  # BatchOptions.format -> Blender's file format
@@ -58,7 +66,7 @@ class PlateSource:
 
     def __init__(self, text):
         self.text = text
-        if is_pattern(text):
+        if is_pattern(text) and not os.path.isfile(text):  # take#3.exr that exists: a still
             self.kind = "sequence"
         elif is_movie_path(text):
             self.kind = "movie"
@@ -80,7 +88,7 @@ class PlateSource:
             first = None
             for frame in frames:
                 path = self.file(frame)
-                if not os.path.isfile(path):
+                if not os.path.exists(path):  # a folder: check_plate_file says so
                     raise ValueError(f"plate frame {frame} is missing: {path}")
                 header = check_plate_file(path, f"plate frame {frame}")
                 size = (header.width, header.height)
@@ -94,6 +102,8 @@ class PlateSource:
                     )
             return
         path = self.file(frames[0])
+        if os.path.isdir(path):
+            raise ValueError(f"plate is a folder, not an image file: {path}")
         if not os.path.isfile(path):
             raise ValueError(f"plate not found: {path}")
         if self.kind == "still":  # read whole now: Blender's own lines would come first
@@ -130,9 +140,10 @@ def render_frames(options: BatchOptions, started, source):
     fmt = options.format
     out = os.path.abspath(options.out)
     name = shot_name(options)
-    report_path = os.path.abspath(options.report or os.path.join(out, f"{name}.report.json"))
-    if os.path.isdir(report_path):
-        raise ValueError(f"--report is a folder, not a file: {report_path}")
+    report_path = report_file(options.report, out, name)
+    sequence = source.text if source.kind == "sequence" else None
+    inputs = [bpy.data.filepath, None if sequence else source.file(0)]
+    check_report_path(report_path, out, name, inputs, sequence)
     source.check(frames)
     outputs = {f: os.path.join(out, f"{name}.{f:04d}.{fmt}") for f in frames}
     elements = {f: element_path(out, name, f) for f in frames}

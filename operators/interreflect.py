@@ -169,10 +169,7 @@ def pass_steps(
             f"the plate must be the scene's plate pixels ({image.size[0]}x{image.size[1]}x3), "
             f"got shape {plate.shape}"
         )
-    if limit > 1 and settings.combine == "WORLD":
-        raise ValueError(
-            "inter-reflections need a map per object: choose a combine mode other than World"
-        )
+    check_combine(settings.combine, passes, r_max)
     layer = depsgraph.view_layer
     reports = []
 
@@ -312,6 +309,15 @@ def _method_note(settings, limit, count) -> tuple:
     if limit > 1 and count > 1 and settings.method == "CAMERA":
         return (CAMERA_NOTE,)
     return ()
+
+
+def check_combine(combine, passes, r_max=R_MAX):
+    """ValueError (one line) when ``passes`` (more than one) meet Combine ``combine`` World:
+    inter-reflections need a map per object. The batch checks it before its first frame."""
+    if _pass_limit(passes, r_max) > 1 and combine == "WORLD":
+        raise ValueError(
+            "inter-reflections need a map per object: choose a combine mode other than World"
+        )
 
 
 def _pass_limit(passes, r_max):

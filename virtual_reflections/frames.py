@@ -103,5 +103,29 @@ def pattern_path(pattern: str, number: int) -> str:
     return os.path.join(folder, name)
 
 
+def pattern_frame(pattern: str, path: str) -> int | None:
+    """The frame number whose file of ``pattern`` (`pattern_path`) is ``path``, whether the
+    file exists or not, or None: ``plate.####.exr`` names ``plate.0012.exr`` (12), not
+    ``plate.12.exr``. Folders are compared as real paths."""
+    folder, name = os.path.split(os.path.abspath(path))
+    base = os.path.basename(pattern)
+    if "#" in base:
+        token = list(re.finditer(r"#+", base))[-1]
+    else:
+        token = re.search(r"%(0?\d*)d", base)
+        if token is None:
+            return None
+    m = re.fullmatch(
+        re.escape(base[: token.start()]) + r"(-?\d+)" + re.escape(base[token.end() :]), name
+    )
+    if m is None:
+        return None
+    number = int(m.group(1))
+    if os.path.basename(pattern_path(pattern, number)) != name:
+        return None
+    same = os.path.realpath(folder) == os.path.realpath(os.path.dirname(os.path.abspath(pattern)))
+    return number if same else None
+
+
 def is_movie_path(path: str) -> bool:
     return os.path.splitext(path)[1].lower() in MOVIE_EXTENSIONS

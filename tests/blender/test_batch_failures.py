@@ -17,6 +17,7 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 from sequence_shots import build_scene, write_plates
+from shots import addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -78,7 +79,12 @@ def test_single_frame_full_disk_keeps_previous_outputs(shot, tmp_path):
     first = run(*args)
     assert first.returncode == 0, first.stderr[-2000:]
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    assert set(before) == {"shot_render.exr", "shot_composite.png", "shot_composite.exr"}
+    assert set(before) == {
+        "shot_render.exr",
+        "shot_composite.png",
+        "shot_composite.exr",
+        "shot.report.json",
+    }
     r = run(*args, fsize=5_000)
     assert r.returncode == 1 and one_line(r), r.stderr[-2000:]
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
@@ -272,8 +278,6 @@ def test_an_interrupt_in_a_callback_from_c_is_held_for_the_next_step():
     """A signal whose Interrupted is raised inside a callback from C (Python cannot pass it
     on there and would print it: the compiled back end's kernel cache calls back through
     ctypes) prints nothing; the next step raises it, and other unraisable errors still print."""
-    from shots import addon_part
-
     signals = addon_part("operators.batch_signals")
     seen = []
     previous = sys.unraisablehook
@@ -295,6 +299,166 @@ def test_an_interrupt_in_a_callback_from_c_is_held_for_the_next_step():
         signals.raise_if_signalled()  # and the signal is the block's alone: nothing raised
     finally:
         sys.unraisablehook = previous
+
+
+# Issue 40 (docs/failures.md, rows 20-40): nobody in, nothing lost.
+
+
+def _report_targets(tmp_path, blend, plates):
+    """--report paths that are inputs or outputs of a run of frames 1-2 into tmp_path/out."""
+    out = tmp_path / "out"
+    return {
+        "the shot": blend,
+        "a plate frame outside --frames": plates[2],
+        "a plate frame inside --frames": plates[0],
+        "the run's own composite": out / "shot.0001.exr",
+        "a composite of another frame": out / "shot.0007.exr",
+        "a CG element": out / "shot_render.0042.exr",
+        "a one-frame output": out / "shot_composite.png",
+        "the lock": out / ".shot.lock",
+    }
+
+
+# 20: --report never replaces an input, an output or a file that is not a report.
+def test_a_report_path_that_is_an_input_or_an_output_is_refused(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    targets = _report_targets(tmp_path, blend, plates)
+    before = {p: p.read_bytes() for p in (blend, *plates)}
+    for what, target in targets.items():
+        args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1-2", *SMALL)
+        r = run(*args, "--report", target)
+        assert r.returncode == 2 and one_line(r), (what, r.stderr[-2000:])
+        assert "--report" in r.stderr, (what, r.stderr)
+        assert not out.exists(), what
+    assert {p: p.read_bytes() for p in before} == before
+    # An existing file that is not one of the tool's reports: kept, refused.
+    notes = tmp_path / "notes.json"
+    for text in ('{"frames": [1, 2]}\n', "my notes\n", ""):
+        notes.write_text(text)
+        r = run(blend, "--plate", pattern(plates), "--out", out, "--frames", 1, "--report", notes)
+        assert r.returncode == 2 and one_line(r) and "not a report" in r.stderr, r.stderr[-2000:]
+        assert notes.read_text() == text and not out.exists()
+    # One frame: the same rules.
+    r = run(blend, "--plate", plates[0], "--out", out, "--report", plates[1], *SMALL)
+    assert r.returncode == 2 and one_line(r) and "--report" in r.stderr, r.stderr[-2000:]
+    r = run(blend, "--plate", plates[0], "--out", out, "--report", blend, *SMALL)
+    assert r.returncode == 2 and one_line(r) and "--report" in r.stderr, r.stderr[-2000:]
+    assert {p: p.read_bytes() for p in before} == before and not out.exists()
+
+
+# 27: a --name that another name's outputs could have (a_render: run a's CG elements).
+def test_a_name_ending_in_an_output_suffix_is_refused(clean_file, tmp_path):
+    plates = write_plates(tmp_path)
+    build_scene()
+    out = tmp_path / "out"
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    for name in ("shot_render", "shot_Composite"):
+        r = run(blend, "--plate", pattern(plates), "--out", out, "--name", name, "--frames", 1)
+        assert r.returncode == 2 and one_line(r) and "--name" in r.stderr, r.stderr[-2000:]
+    # The shot's own name is the default --name: the same rule.
+    named = tmp_path / "a_render.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(named))
+    r = run(named, "--plate", pattern(plates), "--out", out, "--frames", 1)
+    assert r.returncode == 2 and one_line(r) and "--name" in r.stderr, r.stderr[-2000:]
+    assert not out.exists()
+
+
+# 28: frames outside Blender's range are refused, not clamped to its last frame.
+def test_frames_beyond_blenders_range_are_refused(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    limit = bpy.types.Scene.bl_rna.properties["frame_current"].hard_max
+    for frames in (f"{limit + 1}", f"{limit - 1}-{limit + 2}", f"{-limit - 1}"):
+        r = run(blend, "--plate", plates[0], "--out", out, "--frames", frames, *SMALL)
+        assert r.returncode == 2 and one_line(r) and str(limit) in r.stderr, r.stderr[-2000:]
+    r = run(blend, "--plate", plates[0], "--out", out, "--frame", limit + 1, *SMALL)
+    assert r.returncode == 2 and one_line(r) and str(limit) in r.stderr, r.stderr[-2000:]
+    assert not out.exists()
+
+
+# 32: a full disk while writing the report: exit 1, the report named, no temporary left.
+def test_full_disk_writing_the_report_is_exit_1(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1-2", *SMALL)
+    first = run(*args)
+    assert first.returncode == 0, first.stderr[-2000:]
+    report = out / "shot.report.json"
+    before = report.read_bytes()
+    r = run(*args, fsize=len(before) // 4)  # every frame is skipped: only the report is written
+    assert r.returncode == 1 and one_line(r), r.stderr[-2000:]
+    assert str(report) in r.stderr, r.stderr
+    assert [p for p in hidden(out) if not p.endswith(".vr.json")] == []
+    assert report.read_bytes() == before
+
+
+# 33: --combine WORLD with --passes: refused before the first frame, in both modes alike.
+def test_world_with_passes_is_refused_up_front(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    opts = ("--combine", "WORLD", "--passes", 2, *SMALL)
+    ranged = run(blend, "--plate", pattern(plates), "--out", out, "--frames", "1-2", *opts)
+    assert ranged.returncode == 2 and one_line(ranged), ranged.stderr[-2000:]
+    single = run(blend, "--plate", plates[0], "--out", out, *opts)
+    assert single.returncode == 2 and one_line(single), single.stderr[-2000:]
+    assert ranged.stderr == single.stderr and "World" in ranged.stderr
+    assert not out.exists()
+
+
+# 39: a still plate whose name has a # or a %d is the still it names.
+@pytest.mark.parametrize("name", ["take#3.png", "x_100%d.png"])
+def test_an_existing_still_with_pattern_characters_is_a_still(shot, tmp_path, name):
+    blend, plates = shot
+    still = tmp_path / name
+    still.write_bytes(plates[0].read_bytes())
+    source = addon_part("operators.batch_frames").PlateSource(str(still))
+    assert source.kind == "still" and source.file(7) == str(still)
+    if name.startswith("take"):
+        out = tmp_path / "out"
+        r = run(blend, "--plate", still, "--out", out, *SMALL)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert (out / "shot_composite.png").exists()
+
+
+# 40: a folder as the plate of a frame range is named as a folder.
+def test_a_folder_as_plate_of_a_frame_range_is_named(shot, tmp_path):
+    blend, _ = shot
+    folder = tmp_path / "plates.png"
+    folder.mkdir()
+    out = tmp_path / "out"
+    r = run(blend, "--plate", folder, "--out", out, "--frames", "1-2", *SMALL)
+    assert r.returncode == 2 and one_line(r) and "is a folder" in r.stderr, r.stderr[-2000:]
+    assert not out.exists()
+
+
+# Issue 42, 5: one frame writes the report --report names (as a frame range does).
+def test_one_frame_writes_its_report(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    path = tmp_path / "reports" / "one.json"
+    path.parent.mkdir()
+    r = run(blend, "--plate", plates[0], "--out", out, "--report", path, *SMALL)
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads(path.read_text())
+    assert report["complete"] and report["plate"] == str(plates[0])
+    [entry] = report["frames"]
+    assert entry["status"] == "rendered" and entry["frame"] == 1
+    assert sorted(entry["outputs"]) == sorted(
+        str(out / n) for n in ("shot_render.exr", "shot_composite.png", "shot_composite.exr")
+    )
+    assert sorted(p.name for p in out.iterdir()) == [
+        "shot_composite.exr",
+        "shot_composite.png",
+        "shot_render.exr",
+    ]
+    # Without --report it goes where the help says: OUT/<name>.report.json; run again, the
+    # tool's own report is replaced.
+    for _ in range(2):
+        r = run(blend, "--plate", plates[0], "--out", out, *SMALL)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert json.loads((out / "shot.report.json").read_text())["complete"]
 
 
 # 34: damaged still plates in frame-range mode: stderr is exactly the tool's one line.
