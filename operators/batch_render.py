@@ -19,6 +19,7 @@ from ..virtual_reflections.atomic_files import ImageError, commit, held_stderr, 
 from ..virtual_reflections.imagefiles import (
     HALF_MAX,
     check_complete,
+    plain_rgb_command,
     read_channels,
     read_header,
     read_rgba,
@@ -132,9 +133,17 @@ def check_plate_file(path, what="plate"):
         header = read_header(path)
     except ImageError as exc:
         raise ValueError(f"{what}: {exc}") from exc
+    if header.layers:
+        raise ValueError(
+            f"{what} {path} has layers ({', '.join(header.layers)}): Blender reads such an EXR "
+            "as render passes, not a picture; save its colour as a plain R, G, B file first "
+            f"(e.g. {plain_rgb_command(path, header.channels, header.colour)})"
+        )
     check_fits(
-        plate_job_bytes(header.width, header.height, 4096 * 2048),
-        f"the {header.width}x{header.height} plate {path}",
+        plate_job_bytes(
+            header.width, header.height, 4096 * 2048, stored_pixels=header.stored_pixels
+        ),
+        f"the {header.width}x{header.height} plate {path}{header.stored_note}",
     )
     if header.data != (0, 0, header.width, header.height):
         x, y, w, h = header.data

@@ -76,17 +76,41 @@ def _start_threads() -> None:
 
 
 def _load_kernels():
-    """Import kernels.py (which imports numba: optional, never required) as KERNELS."""
+    """Import kernels.py (which imports numba: optional, never required) as KERNELS, its
+    compiled kernels cached in `cache_folder` (Numba picks a kernel's cache folder when the
+    module defines it, from numba.config.CACHE_DIR: set for this module alone)."""
+    import numba
+
     path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "kernels.py")
     spec = importlib.util.spec_from_file_location(KERNELS, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[KERNELS] = module
+    previous = numba.config.CACHE_DIR
+    numba.config.CACHE_DIR = previous or cache_folder()  # a host's own setting stays
     try:
         spec.loader.exec_module(module)
     except BaseException:
         del sys.modules[KERNELS]
         raise
+    finally:
+        numba.config.CACHE_DIR = previous
     return module
+
+
+def cache_folder() -> str:
+    """Where the compiled kernels are cached: NUMBA_CACHE_DIR when it is set, else the user's
+    cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``, ``~/Library/Caches`` on macOS,
+    ``%LOCALAPPDATA%`` on Windows) + ``virtual-reflections/numba``; never the package's own
+    folder, which an installed extension may not write and an update replaces."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or os.path.expanduser(r"~\AppData\Local")
+    elif sys.platform == "darwin":
+        base = os.path.expanduser("~/Library/Caches")
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+    return os.path.join(base, "virtual-reflections", "numba")
 
 
 def _forced() -> str:

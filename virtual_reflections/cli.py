@@ -36,13 +36,15 @@ from .envmap import DEFAULT_SIZE
 from .imagefiles import check_writable, read_header, read_plate, write_map
 from .interrupts import hold_interrupts, raising, silent
 from .memory import check_fits, plate_job_bytes
-from .params import METHOD_ALIASES, METHODS, Params
+from .params import METHOD_ALIASES, PLATE_METHODS, Params
+from .table import max_size
 
 EXIT_BAD_INPUT = 2
 EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
-WIDTH_RANGE = {"latlong": (8, 16384), "cube": (4, 8192)}  # --width, per layout
+# --width, per layout: up to the largest map whose lookup table fits its compact form
+WIDTH_RANGE = {"latlong": (8, max_size("latlong")), "cube": (4, max_size("cube"))}
 
 
 class Terminated(KeyboardInterrupt):
@@ -81,7 +83,8 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         help="lat-long width (height = width/2) or cube face size "
-        f"(default {DEFAULT_SIZE['latlong']} lat-long, {DEFAULT_SIZE['cube']} cube)",
+        f"(default {DEFAULT_SIZE['latlong']} lat-long, {DEFAULT_SIZE['cube']} cube; at most "
+        f"{WIDTH_RANGE['latlong'][1]} lat-long, {WIDTH_RANGE['cube'][1]} cube)",
     )
     p.add_argument(
         "--triangles",
@@ -110,8 +113,8 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--method",
-        choices=METHODS + tuple(METHOD_ALIASES),
-        metavar="{camera,paper}",
+        choices=PLATE_METHODS + tuple(METHOD_ALIASES),
+        metavar="{" + ",".join(PLATE_METHODS) + "}",
         default="camera",
         help="camera (default): the plate placed by --hfov, unseen directions filled from its "
         "edges (the add-on's Camera View); paper: Ropinski et al. 2004 (frustum: an older "
@@ -192,8 +195,10 @@ def run_envmap(args) -> None:
     header = read_header(args.plate)
     map_pixels = size * size // 2 if args.layout == "latlong" else 6 * size * size
     check_fits(
-        plate_job_bytes(header.width, header.height, map_pixels),
-        f"a map from the {header.width}x{header.height} plate {args.plate}",
+        plate_job_bytes(
+            header.width, header.height, map_pixels, stored_pixels=header.stored_pixels
+        ),
+        f"a map from the {header.width}x{header.height} plate {args.plate}{header.stored_note}",
     )
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]
@@ -226,8 +231,10 @@ def run_segment(args) -> None:
     _check_files(args)
     header = read_header(args.plate)
     check_fits(
-        plate_job_bytes(header.width, header.height) + header.width * header.height * 24,
-        f"a segmentation of the {header.width}x{header.height} plate {args.plate}",
+        plate_job_bytes(header.width, header.height, stored_pixels=header.stored_pixels)
+        + header.width * header.height * 24,
+        f"a segmentation of the {header.width}x{header.height} plate {args.plate}"
+        + header.stored_note,
     )
     plate = read_plate(args.plate)
     h, w = plate.pixels.shape[:2]

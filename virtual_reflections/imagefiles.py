@@ -83,26 +83,77 @@ class PlateHeader:
 
     width, height: the display window (the picture's frame: what the plate is);
     data: (x, y, width, height) of the pixels stored, relative to the display window;
-    channels: the channel names; integer: 8/16-bit (sRGB-encoded) rather than half/float."""
+    channels: the channel names; integer: 8/16-bit (sRGB-encoded) rather than half/float;
+    colour: the indices of the channels read as R, G, B (`colour_channels`), or None for the
+    first channels (grey or unnamed)."""
 
     width: int
     height: int
     data: tuple
     channels: tuple
     integer: bool
+    colour: tuple | None = None
 
     @property
     def bytes_per_copy(self) -> int:
         """Bytes of one float32 RGB copy of the plate."""
         return self.width * self.height * 3 * 4
 
+    @property
+    def stored_pixels(self) -> int:
+        """Pixels the file stores (its data window), which a read holds before the plate is
+        cut to the display window."""
+        return self.data[2] * self.data[3]
+
+    @property
+    def stored_note(self) -> str:
+        """For a message: the data window, when the file stores more pixels than the plate."""
+        if self.stored_pixels <= self.width * self.height:
+            return ""
+        return f" (its data window: {self.data[2]}x{self.data[3]})"
+
+    @property
+    def layers(self) -> tuple:
+        """The layers of an EXR's channel names (``diffuse`` of ``diffuse.R``), in order."""
+        return tuple(dict.fromkeys(n.rpartition(".")[0] for n in self.channels if "." in n))
+
 
 _COLOUR = {"R", "G", "B", "Y", "r", "g", "b", "y", "red", "green", "blue"}
+_RGB = {"r": 0, "red": 0, "g": 1, "green": 1, "b": 2, "blue": 2}
+
+
+def colour_channels(names, path: str) -> tuple | None:
+    """The indices of the R, G, B channels among an EXR's channel ``names``: the one layer
+    (``diffuse`` of ``diffuse.R``, or the unnamed layer) that has all three; of several, the
+    unnamed one. None when no layer has all three (a grey or unnamed picture: its first
+    channels). ImageError (one line) for several named colour layers and no unnamed one."""
+    layers = {}
+    for i, name in enumerate(names):
+        layer, _, channel = name.rpartition(".")
+        if channel.lower() in _RGB:
+            layers.setdefault(layer, {}).setdefault(_RGB[channel.lower()], i)
+    found = {layer: (c[0], c[1], c[2]) for layer, c in layers.items() if len(c) == 3}
+    if len(found) > 1 and "" not in found:
+        first = next(iter(found.values()))
+        raise ImageError(
+            f"plate {path} has several colour layers ({', '.join(found)}): save the one to use "
+            f"as a plain R, G, B file first (e.g. {plain_rgb_command(path, names, first)})"
+        )
+    if not found:
+        return None
+    return found[""] if "" in found else next(iter(found.values()))
+
+
+def plain_rgb_command(path: str, names, colour) -> str:
+    """The oiiotool command that saves the channels ``colour`` (indices into ``names``; None:
+    a LAYER to name) of ``path`` as a plain R, G, B file."""
+    r, g, b = ("LAYER.R", "LAYER.G", "LAYER.B") if colour is None else (names[i] for i in colour)
+    return f"oiiotool {path} --ch R={r},G={g},B={b} -o OUT.exr"
 
 
 def read_header(path: str) -> PlateHeader:
-    """The header of a plate file; ImageError (one line) for a missing, unreadable, empty or
-    colourless (depth-only) file."""
+    """The header of a plate file; ImageError (one line) for a missing, unreadable, empty,
+    deep or colourless (depth-only) file, or one with several colour layers."""
     oiio = openimageio()
     if os.path.isdir(path):
         raise ImageError(f"plate is a folder, not an image file: {path}")
@@ -124,6 +175,11 @@ def _header(spec, path) -> PlateHeader:
         full = (spec.width, spec.height)
     if spec.width < 1 or spec.height < 1 or spec.nchannels < 1 or min(full) < 1:
         raise ImageError(f"plate {path} is empty ({spec.width}x{spec.height})")
+    if spec.deep:
+        raise ImageError(
+            f"plate {path} is a deep image (samples at many depths per pixel), not supported: "
+            f"flatten it first (e.g. oiiotool {path} --flatten -o OUT.exr)"
+        )
     names = tuple(spec.channelnames)
     integer = str(spec.format) in ("uint8", "int8", "uint16", "int16")
     if not integer and names and not any(n.split(".")[-1] in _COLOUR for n in names):
@@ -131,7 +187,7 @@ def _header(spec, path) -> PlateHeader:
             f"plate {path} has no colour channels (only {', '.join(names)}): not a picture"
         )
     data = (spec.x - spec.full_x, spec.y - spec.full_y, spec.width, spec.height)
-    return PlateHeader(full[0], full[1], data, names, integer)
+    return PlateHeader(full[0], full[1], data, names, integer, colour_channels(names, path))
 
 
 def read_plate(path: str) -> Plate:
@@ -152,13 +208,16 @@ def read_plate(path: str) -> Plate:
             spec = inp.spec()
             integer = header.integer
             fmt = "uint8" if str(spec.format) == "uint8" else "uint16" if integer else "float"
-            pixels = inp.read_image(0, 0, 0, min(spec.nchannels, 4), fmt)
+            first, last = _channel_span(header)
+            pixels = inp.read_image(0, 0, first, last, fmt)
             if pixels is None or inp.has_error:
                 raise ImageError(f"cannot read plate {path} whole: {first_line(inp.geterror())}")
         finally:
             inp.close()
             oiio.geterror()
     pixels = np.asarray(pixels).reshape(spec.height, spec.width, -1)
+    if header.colour is not None:
+        pixels = pixels[..., [i - first for i in header.colour]]
     if integer:
         linear, encoding = decode_uint(pixels[..., :3]), "sRGB"
     else:
@@ -166,6 +225,14 @@ def read_plate(path: str) -> Plate:
     linear = _display_window(linear, header)
     clean = clean_plate(linear)
     return Plate(clean.pixels, encoding, clean.nonfinite, path)
+
+
+def _channel_span(header: PlateHeader) -> tuple[int, int]:
+    """The channels a plate read needs, first and one past the last: the colour layer's, or
+    the first four (grey, grey and alpha, RGB, RGBA)."""
+    if header.colour is None:
+        return 0, min(len(header.channels), 4)
+    return min(header.colour), max(header.colour) + 1
 
 
 def _display_window(pixels: np.ndarray, header: PlateHeader) -> np.ndarray:

@@ -9,11 +9,11 @@ rounding (tests/engine/test_kernels.py). Reading the taps where they lie instead
 them into a (n, taps, 3) array first is what makes them faster: NumPy's `take` of 12-byte
 rows is about 8 ns a tap, a compiled loop reads them from the cache.
 
-Compiled on first use and cached on disk (Numba's cache, beside this file or in the user's
-cache directory when this one is read-only): a new process pays ~1 s for the first map
-(importing Numba, loading the kernels), the first ever ~10 s to compile them. This module
-imports nothing of the engine (backends.py loads it under one name whatever the package is
-called): ROW repeats trilinear.ROW, which a test holds equal.
+Compiled on first use and cached on disk (Numba's cache, in the user's cache folder or
+NUMBA_CACHE_DIR: backends.cache_folder, never beside this file): a new process pays ~1 s for
+the first map (importing Numba, loading the kernels), the first ever ~10 s to compile them.
+This module imports nothing of the engine (backends.py loads it under one name whatever the
+package is called): ROW repeats trilinear.ROW, which a test holds equal.
 """
 
 from __future__ import annotations

@@ -43,12 +43,17 @@ def available_bytes() -> int:
     return min(limits) if limits else 1 << 62
 
 
-def plate_job_bytes(width: int, height: int, map_pixels: int = 0, stored_bytes: int = 4) -> int:
+def plate_job_bytes(
+    width: int, height: int, map_pixels: int = 0, stored_bytes: int = 4, stored_pixels=None
+) -> int:
     """An upper bound of the peak memory of one map from a ``width`` x ``height`` plate:
-    the file's pixels as stored (``stored_bytes`` per channel, 4 channels at most), two
-    float32 RGB copies (decoded, cleaned) and the map with its lookup table."""
+    the file's pixels as stored (``stored_pixels``, an EXR's data window, which may be far
+    larger than the plate; default the plate's; ``stored_bytes`` per channel, 4 channels at
+    most), two float32 RGB copies of the larger (decoded, cleaned) and the map with its
+    lookup table."""
     plate = width * height
-    return plate * 4 * stored_bytes + 2 * plate * 12 + map_pixels * 64
+    stored = plate if stored_pixels is None else stored_pixels
+    return stored * 4 * stored_bytes + 2 * max(stored, plate) * 12 + map_pixels * 64
 
 
 def check_fits(need: int, what: str) -> None:

@@ -13,6 +13,9 @@ import numpy as np
 
 MAX_TRIANGLES = 1024
 METHODS = ("paper", "camera", "ground")
+# The methods a plate and the object's box on it are enough for (the engine's command line):
+# the ground method needs the object's place in the scene (Params.ground, up) as well.
+PLATE_METHODS = tuple(m for m in METHODS if m != "ground")
 METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
 # The sky prior's gain (Params.sky_gain) for the surroundings an artist can name: "auto" knows
 # nothing of the shot (the gain that best predicts the upper hemisphere of six of Blender's

@@ -53,7 +53,7 @@ from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
 from .supersample import Supersample, supersamples
-from .trilinear import Trilinear, trilinear_samples
+from .trilinear import MAX_TEXELS, Trilinear, trilinear_samples
 
 
 @dataclass(frozen=True, eq=False)
@@ -549,6 +549,15 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         supersample=seen if seen is not None and seen.texels.size else None,
         extension=edge,
     )
+
+
+def max_size(layout: str) -> int:
+    """The largest map ``size`` of ``layout`` (a lat-long's width, a cube's face) whose table
+    the compact form holds (trilinear.MAX_TEXELS texels): a lat-long is W x W / 2 texels, a
+    cube six faces."""
+    if layout == "latlong":
+        return 2 * math.isqrt(MAX_TEXELS // 2)
+    return math.isqrt(MAX_TEXELS // 6)
 
 
 @bounded  # one budget in bytes for every table (cache.py)

@@ -38,6 +38,12 @@ from .taps import weighted_sum
 
 ROW = 2048  # texels per row of a run (a power of 2): OpenCV remaps runs as (n / ROW, ROW) images
 MAX_ROWS = 32767  # OpenCV's images have fewer rows and columns (and int16 holds them)
+# Runs of a table at most: two per mip level, and a plate is less than 2^31 pixels a side
+# (the flat pyramid's rows are int32), so fewer than 32 levels.
+MAX_RUNS = 64
+# The most texels a table's compact form holds whatever the plate: ROW * MAX_ROWS rows of
+# the runs, less the padding of every run to whole rows of ROW.
+MAX_TEXELS = ROW * MAX_ROWS - MAX_RUNS * (ROW - 1)
 BLOCK = 32768  # texels per block of NumPy work (8192 was 15-25 % slower: more Python per tap)
 
 

@@ -483,3 +483,43 @@ def test_a_damaged_still_plate_in_a_frame_range_is_one_line(shot, tmp_path, dama
     assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
     assert str(plate) in r.stderr
     assert not out.exists()
+
+
+# 25, 37 (issue 40): plates Blender would not read as a picture are refused up front, naming why.
+def test_layered_exr_plate_is_refused_naming_its_layers(shot, tmp_path):
+    # Blender reads an EXR with layered channel names as render passes: no picture.
+    blend, _ = shot
+    spec = oiio.ImageSpec(64, 32, 4, "half")
+    spec.channelnames = ("depth.Z", "diffuse.R", "diffuse.G", "diffuse.B")
+    plate = tmp_path / "layers.exr"
+    o = oiio.ImageOutput.create(str(plate))
+    o.open(str(plate), spec)
+    o.write_image(np.ones((32, 64, 4), np.float16))
+    o.close()
+    out = tmp_path / "out"
+    r = run(blend, "--plate", plate, "--out", out, *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert "depth, diffuse" in r.stderr and "--ch R=diffuse.R" in r.stderr, r.stderr
+    assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+def test_deep_exr_plate_is_refused(shot, tmp_path):
+    blend, _ = shot
+    spec = oiio.ImageSpec(64, 32, 5, "float")
+    spec.channelnames = ("R", "G", "B", "A", "Z")
+    spec.deep = True
+    deep = oiio.DeepData()
+    deep.init(spec)
+    for pixel in range(64 * 32):
+        deep.set_samples(pixel, 1)
+        for c in range(5):
+            deep.set_deep_value(pixel, c, 0, 0.5)
+    plate = tmp_path / "deep.exr"
+    o = oiio.ImageOutput.create(str(plate))
+    assert o.open(str(plate), spec) and o.write_deep_image(deep)
+    o.close()
+    out = tmp_path / "out"
+    r = run(blend, "--plate", plate, "--out", out, *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert "deep image" in r.stderr and "--flatten" in r.stderr, r.stderr
+    assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]

@@ -308,3 +308,178 @@ def test_sigterm_inside_a_callback_from_c_still_ends_the_run(plate, tmp_path, mo
     hook = interrupts.hold_interrupts(seen.append, held := [])
     hook(type("Info", (), {"exc_value": RuntimeError("not an interrupt")})())
     assert not held and len(seen) == 1  # other unraisable errors are still printed
+
+
+# Issue 40: plates and options that passed the checks and failed later.
+def write_channels(path, names, values, fmt="half"):
+    """A 160x90 EXR whose channels `names` hold the constants `values`."""
+    spec = oiio.ImageSpec(160, 90, len(names), fmt)
+    spec.channelnames = tuple(names)
+    pixels = np.empty((90, 160, len(names)), np.float32)
+    pixels[...] = values
+    return write(path, pixels.astype(np.float16 if fmt == "half" else np.float32), spec=spec)
+
+
+def test_layered_exr_plate_reads_its_colour_layer(tmp_path):
+    # 25: depth.Z, diffuse.R/G/B: the colour layer is the plate, not depth as red.
+    plate = write_channels(
+        tmp_path / "layers.exr", ("depth.Z", "diffuse.R", "diffuse.G", "diffuse.B"), (9, 1, 2, 3)
+    )
+    np.testing.assert_allclose(imagefiles.read_plate(str(plate)).pixels[0, 0], (1, 2, 3))
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *BBOX, *PAPER, "--width", 64)
+    assert r.returncode == 0, r.stderr
+    env = oiio.ImageBuf(str(tmp_path / "m.exr")).get_pixels(oiio.FLOAT)
+    np.testing.assert_allclose(env.reshape(-1, 3).mean(0), (1, 2, 3), rtol=1e-3)
+    # An unnamed R, G, B beside other layers is the picture.
+    names = ("R", "G", "B", "depth.Z", "spec.R", "spec.G", "spec.B")
+    plate = write_channels(tmp_path / "main.exr", names, (4, 5, 6, 9, 7, 7, 7))
+    np.testing.assert_allclose(imagefiles.read_plate(str(plate)).pixels[0, 0], (4, 5, 6))
+
+
+def test_several_colour_layers_are_refused_by_name(tmp_path):
+    # 25: which of two colour layers is the plate is the artist's choice, not the reader's.
+    names = ("diffuse.R", "diffuse.G", "diffuse.B", "spec.R", "spec.G", "spec.B")
+    plate = write_channels(tmp_path / "two.exr", names, (1, 2, 3, 4, 5, 6))
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *BBOX, *PAPER)
+    assert r.returncode == 2 and one_line(r), r.stderr
+    assert "diffuse" in r.stderr and "spec" in r.stderr
+    assert list(tmp_path.iterdir()) == [plate]
+
+
+def test_width_beyond_the_compact_form_is_refused_up_front(plate, tmp_path):
+    # 35: a --width whose table the compact form cannot hold is refused before any work (under
+    # a 2 GiB address space, which that work would need many times over).
+    for layout, width in (("latlong", 16384), ("cube", 8192)):
+        r = run(
+            "envmap",
+            plate,
+            "-o",
+            tmp_path / "m.exr",
+            *BBOX,
+            *PAPER,
+            "--layout",
+            layout,
+            "--width",
+            width,
+            address_space=2 << 30,
+        )
+        assert r.returncode == 2 and one_line(r), r.stderr
+        assert "--width" in r.stderr and str(width) in r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_largest_width_fits_the_compact_form():
+    # 35: the largest --width's table fits the compact form, the next size does not.
+    from virtual_reflections import layouts, table, trilinear
+
+    for layout, step in (("latlong", 2), ("cube", 1)):
+        largest = cli.WIDTH_RANGE[layout][1]
+        assert largest == table.max_size(layout)
+        h, w = layouts.map_shape(layout, largest)
+        assert h * w <= trilinear.MAX_TEXELS
+        h, w = layouts.map_shape(layout, largest + step)
+        assert h * w > trilinear.MAX_TEXELS
+
+
+def test_data_window_larger_than_memory_is_refused_up_front(tmp_path):
+    # 36: an 8x8 picture whose data window is 16000x16000: the stored pixels count too.
+    spec = oiio.ImageSpec(16000, 16000, 3, "half")
+    spec.full_x, spec.full_y, spec.full_width, spec.full_height = 0, 0, 8, 8
+    spec.attribute("compression", "rle")  # zeros: a 24 MB file
+    path = tmp_path / "wide.exr"
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    rows = np.zeros((500, 16000, 3), np.float16)
+    for y in range(0, 16000, 500):
+        assert out.write_scanlines(y, y + 500, 0, rows)
+    out.close()
+    r = run(
+        "envmap",
+        path,
+        "-o",
+        tmp_path / "m.exr",
+        "--bbox",
+        2,
+        2,
+        6,
+        6,
+        *PAPER,
+        address_space=3 << 30,
+    )
+    assert r.returncode == 1 and one_line(r), r.stderr
+    assert "memory" in r.stderr and "16000x16000" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["wide.exr"]
+
+
+def write_deep(path):
+    """A 16x8 deep EXR, one sample a pixel."""
+    spec = oiio.ImageSpec(16, 8, 5, "float")
+    spec.channelnames = ("R", "G", "B", "A", "Z")
+    spec.deep = True
+    deep = oiio.DeepData()
+    deep.init(spec)
+    for pixel in range(16 * 8):
+        deep.set_samples(pixel, 1)
+        for c in range(5):
+            deep.set_deep_value(pixel, c, 0, 0.5)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec) and out.write_deep_image(deep)
+    out.close()
+    return path
+
+
+def test_deep_exr_plate_is_refused(tmp_path):
+    # 37: a deep EXR is named as one, not "read_native_scanlines without an open file".
+    plate = write_deep(tmp_path / "deep.exr")
+    for command in ("envmap", "segment"):
+        r = run(command, plate, "-o", tmp_path / "m.png", "--bbox", 2, 2, 6, 6, *PAPER)
+        assert r.returncode == 2 and one_line(r), r.stderr
+        assert "deep" in r.stderr and "flatten" in r.stderr
+    assert list(tmp_path.iterdir()) == [plate]
+
+
+def test_ground_method_is_refused_up_front(plate, tmp_path):
+    # 40: the ground method needs the object's place in a scene, which the command line
+    # cannot give: --method offers the methods it can run.
+    r = run("envmap", plate, "-o", tmp_path / "m.exr", *BBOX, "--method", "ground", "--hfov", 50)
+    assert r.returncode == 2 and one_line(r), r.stderr
+    assert "--method" in r.stderr and "camera" in r.stderr and "paper" in r.stderr
+    assert "up" not in r.stderr.split()  # no internal parameter named
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_kernel_cache_is_kept_in_the_users_cache_folder(tmp_path):
+    # 41: compiled kernels are cached in the user's cache folder (or NUMBA_CACHE_DIR), never
+    # in the package folder, which an installed extension may not write and an update replaces.
+    pytest.importorskip("numba")  # requirements/*.txt install it: CI runs this
+    import shutil
+
+    package = tmp_path / "copy" / "virtual_reflections"
+    shutil.copytree(
+        os.path.join(ROOT, "virtual_reflections"),
+        package,
+        ignore=shutil.ignore_patterns("__pycache__"),
+    )
+    script = (
+        "import sys; import numpy as np; sys.path.insert(0, sys.argv[1]);"
+        "from virtual_reflections import backends; k = backends.kernels();"
+        "backends.run(k.halve, np.ones((8, 8, 3), np.float32), np.zeros((4, 4, 3), np.float32))"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    cases = (
+        dict(env, XDG_CACHE_HOME=str(tmp_path / "xdg")),  # the default
+        dict(env, XDG_CACHE_HOME=str(tmp_path / "xdg2"), NUMBA_CACHE_DIR=str(tmp_path / "nb")),
+    )
+    for environ in cases:
+        proc = subprocess.run(
+            [sys.executable, "-c", script, str(package.parent)],
+            capture_output=True,
+            text=True,
+            env=environ,
+            timeout=300,
+        )
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    assert not [p.name for p in package.rglob("*.nb[ic]")]
+    assert list((tmp_path / "xdg" / "virtual-reflections" / "numba").rglob("*.nbi"))
+    assert list((tmp_path / "nb").rglob("*.nbi"))
+    assert not (tmp_path / "xdg2").exists()
