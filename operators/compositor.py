@@ -419,13 +419,23 @@ def _plate_node(tree, image, location):
 
 def _render_size(tree, plate, location):
     """A Scale node fed by `plate` stretching it to the render size (resolution x %), as
-    Setup Tracking Scene does: without it any Resolution % but 100 crops the plate."""
+    Setup Tracking Scene does: without it any Resolution % but 100 crops the plate.
+
+    Its filter must not read past the plate's edge, which is transparent: a bilinear scale
+    to 200 % made the outer pixels 0.75 opaque (0.56 in the corners), the colour faded with
+    them. 5.x: bilinear, the edge extended. 4.5 has no extension mode: nearest, which reads
+    only pixels of the plate (exact at 200 %; a 50 % preview takes one pixel of four)."""
     scale = _new_node(tree, "CompositorNodeScale", "Plate To Render Size", location)
     if "Type" in scale.inputs:  # 5.x: the options are menu sockets
         scale.inputs["Type"].default_value = "Render Size"
         scale.inputs["Frame Type"].default_value = "Stretch"
+        for axis in ("Extension X", "Extension Y"):  # 5.2 has them
+            if axis in scale.inputs:
+                scale.inputs[axis].default_value = "Extend"
     else:
         scale.space, scale.frame_method = "RENDER_SIZE", "STRETCH"
+        if hasattr(scale, "interpolation"):  # 4.5; 4.2-4.4 have neither
+            scale.interpolation = "NEAREST"
     tree.links.new(plate.outputs["Image"], scale.inputs["Image"])
     return scale
 

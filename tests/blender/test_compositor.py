@@ -515,3 +515,21 @@ def test_blender_composite_matches_numpy(
     tolerance = 1e-4 if plate_format == "png" else 1e-5  # OCIO's sRGB vs the exact EOTF
     assert np.abs(blended[..., :3] - expected).max() < tolerance
     assert np.abs(blended[..., :3] - plate).max() > 0.1  # the plane is really there
+
+
+@pytest.mark.parametrize("percent", [200, 50])
+def test_composite_at_another_resolution_is_the_plate_to_its_border(comp, tmp_path, percent):
+    """At 200 % the plate is stretched to twice its size: its outermost pixels too are the
+    plate, opaque (a bilinear scale reading past the plate's edge made them 0.75 alpha, 0.56
+    in the corners, the colour faded with it)."""
+    scene, _ = plate_scene(tmp_path)
+    colour = (0.6, 0.3, 0.15)
+    path = write_image(tmp_path / "flat.exr", np.full((8, 16, 3), colour, np.float32), "float")
+    comp.setup_from_plate(scene, bpy.data.images.load(str(path)))  # nothing before the camera
+    build_render_scene(scene)
+    bpy.data.objects.remove(bpy.data.objects["Plane"])
+    scene.render.resolution_percentage = percent
+    out = render_to(scene, tmp_path / "out.exr", compositing=True)
+    assert out.shape == (8 * percent // 100, 16 * percent // 100, 4)
+    assert np.abs(out[..., 3] - 1.0).max() < 1e-6, out[..., 3]
+    assert np.abs(out[..., :3] - colour).max() < 1e-5
