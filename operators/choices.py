@@ -94,8 +94,8 @@ RESOLUTION_ITEMS = (
     (
         "AUTO",
         "Auto",
-        "From the object's size on screen: about 3 map pixels (pi) per pixel it spans, rounded "
-        "up to the next size below (256 to 4096)",
+        "From the object's size in the full-size render (Resolution 100 %): about 3 map pixels "
+        "(pi) per pixel it spans, rounded up to the next size (256 to 4096)",
     ),
 ) + tuple((str(w), f"{w} x {w // 2}", f"Lat-long map {w} x {w // 2} pixels") for w in WIDTHS)
 MAP_STORAGE_ITEMS = (

@@ -210,7 +210,8 @@ class VR_OT_setup_plate(bpy.types.Operator):
 
     ground: bpy.props.BoolProperty(
         name="Shadow-Catcher Ground",
-        description="Put a shadow-catcher plane under the objects (unless the scene has a ground)",
+        description="Put a plane under the objects (unless the scene has a ground): in Cycles a "
+        "shadow catcher, their shadows on the photo; EEVEE has none and shows the plate there",
         default=True,
     )
     lens: bpy.props.BoolProperty(
@@ -249,15 +250,20 @@ class VR_OT_setup_plate(bpy.types.Operator):
                 message += " (EEVEE shows the plate there; Cycles also catches the shadows)"
         self.report({"INFO"}, message)
         for line in record["advice"]:
-            self.report({"WARNING"} if line.startswith("Warning") else {"INFO"}, line)
+            warning = line.removeprefix("Warning: ")  # Blender's report says "Warning:" itself
+            self.report({"WARNING"} if warning != line else {"INFO"}, warning)
         return {"FINISHED"}
 
 
 class VR_OT_undo_setup_plate(bpy.types.Operator):
-    """Restore the render settings, camera background and compositor from before Set Up"""
+    """Undo Set Up From Plate"""
 
     bl_idname = "vr.undo_setup_plate"
     bl_label = "Undo Plate Set-Up"
+    bl_description = (
+        "Undo Set Up From Plate: the render size, film, view transform (colour management), "
+        "camera background, focal length and compositor as they were, its ground deleted"
+    )
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod

@@ -22,6 +22,7 @@ from ..operators import (
     shading,
     world_probe,
 )
+from ..operators.choices import METHOD_ITEMS
 from . import presets
 
 
@@ -69,6 +70,16 @@ def _draw_surroundings(col, settings, context):
             context,
             icon="INFO",
         )
+
+
+def _regions_note(method) -> str:
+    """What the segmentation preview shows under a method that cuts no regions."""
+    name = next(label for key, label, _ in METHOD_ITEMS if key == method)
+    ground = " and reads the ground under the objects" if method == "GROUND" else ""
+    return (
+        f"{name} cuts no regions: it places the whole plate by the camera's view{ground}. "
+        "The regions shown are the paper's, for reference"
+    )
 
 
 class _Tab:
@@ -154,7 +165,15 @@ class VR_PT_object(_Tab, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         scene, obj = context.scene, context.active_object
-        layout.prop(obj.virtual_reflections, "enabled", text="Reflect the Plate (Mark)")
+        layout.prop(obj.virtual_reflections, "enabled")
+        if shading.is_attached(obj) and not obj.virtual_reflections.enabled:
+            _wrapped(
+                layout,
+                "Reflects the plate: generated while selected, not marked (Generate with "
+                "nothing selected takes the marked objects)",
+                context,
+                icon="INFO",
+            )
         shown = previews.for_object(scene, obj)
         if shown["image"] is None:
             layout.label(text="Generate to see how the plate is cut", icon="INFO")
@@ -175,7 +194,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
         elif not maps.missing_file(image):  # a missing map's file: its advice says so
             layout.label(text="No plate to show", icon="ERROR")
         if scene.virtual_reflections.method != "PAPER":
-            layout.label(text="Regions: the paper's, for reference", icon="INFO")
+            _wrapped(layout, _regions_note(scene.virtual_reflections.method), context, "INFO")
         for line in shown["advice"]:
             col = layout.column(align=True)
             col.alert = True

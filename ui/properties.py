@@ -60,7 +60,12 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         subtype="PERCENTAGE",
     )
     method: EnumProperty(
-        update=_shaping_changed, name="Method", items=METHOD_ITEMS, default="GROUND"
+        update=_shaping_changed,
+        name="Method",
+        items=METHOD_ITEMS,
+        default="GROUND",
+        description="How the plate becomes each reflective object's environment map: placed by "
+        "the camera's view (with the ground under the objects), or cut into the paper's regions",
     )
     ground_object: PointerProperty(
         update=_shaping_changed,
@@ -115,7 +120,12 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         "for a sunset",
     )
     front: EnumProperty(
-        name="Front Face", items=FRONT_ITEMS, default="CONTINUOUS", update=_shaping_changed
+        name="Front Face",
+        items=FRONT_ITEMS,
+        default="CONTINUOUS",
+        update=_shaping_changed,
+        description="Paper (2004): how the plate's outer ring (region F) is folded onto the "
+        "map's front face, what is behind the camera",
     )
     triangles: IntProperty(
         update=_shaping_changed,
@@ -127,9 +137,20 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         step=4,
     )
     resolution: EnumProperty(
-        name="Resolution", items=RESOLUTION_ITEMS, default="1024", update=_shaping_changed
+        name="Resolution",
+        items=RESOLUTION_ITEMS,
+        default="1024",
+        update=_shaping_changed,
+        description="The width of each object's lat-long map (its height is half): a larger "
+        "map shows finer detail in a large or close mirror and costs more memory and time",
     )
-    combine: EnumProperty(name="Combine", items=COMBINE_ITEMS, default="REPLACE")
+    combine: EnumProperty(
+        name="Combine",
+        items=COMBINE_ITEMS,
+        default="REPLACE",
+        description="How the reflection meets each object's material: in place of it, times "
+        "its colour, mixed over it, or as one shared map lighting the world",
+    )
     strength: FloatProperty(
         name="Strength",
         description="Brightness of the reflection (Mix: its maximum weight)",
@@ -185,8 +206,9 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
 
 class VR_ObjectSettings(bpy.types.PropertyGroup):
     enabled: BoolProperty(
-        name="Reflect Plate",
-        description="Give this object a virtual reflection when generating for marked objects",
+        name="Mark for Generate",
+        description="Marked objects get a reflection when Generate runs with nothing selected, "
+        "and in the batch; an object generated while selected reflects without the mark",
         default=False,
     )
     bounds: FloatVectorProperty(
