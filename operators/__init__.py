@@ -13,9 +13,9 @@
 Only modules with something to register are listed here, in that order.
 """
 
-from . import live, maps, ops, previews, sequence, undo_pixels
+from . import live, maps, ops, previews, sequence, shading, undo_pixels
 
-_modules = (undo_pixels, maps, sequence, live, previews, ops)
+_modules = (undo_pixels, shading, maps, sequence, live, previews, ops)
 
 
 def register():

@@ -159,8 +159,8 @@ def steps(scene, depsgraph, objects, pixels=None):
         shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
         jobs.append(("World", None, union_box(boxes.values()), shared, max(widths.values()), 0))
     for obj, box in boxes.items() if not jobs else ():
-        if obj.library is not None or obj.override_library is not None:
-            report.warnings.append(f"{obj.name} is linked from a library (read-only): skipped")
+        if obj.library is not None:  # linked; a library override (local) is generated
+            report.warnings.append(shading.linked_object(obj))
             continue
         own = pipeline.map_params(view, scene, depsgraph, [obj])
         rough = pipeline.map_roughness(scene, [obj])

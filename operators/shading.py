@@ -32,7 +32,11 @@ Both nodes wrap horizontally, so Cycles shows no seam either way.
 Nothing here edits a user's material or world: `attach` assigns object-level copies
 (`slot.link = 'OBJECT'`), `attach_world` (world.py) assigns a new world, and what was there
 before is recorded on the object / scene so `detach` / `detach_world` restore it exactly and
-delete only what the add-on created (flagged with the custom property `CREATED`).
+delete only what the add-on created (flagged with the custom property `CREATED`). A material
+linked from a library is copied the same way, so a library override (how shots bring assets
+in: a local object whose materials are the library's) takes a map; its record is kept in its
+scene too (`record_of`), since Blender drops a custom property added on an override when the
+file opens.
 """
 
 import bpy
@@ -50,22 +54,71 @@ REFLECTABLE = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}  # object t
 
 
 RECORD = "vr_shading"  # on objects: what attach() replaced
+OVERRIDE_RECORDS = "vr_override_shading"  # on a scene: [{"object", "record"}] of overrides
+
+
+def record_of(obj):
+    """What `attach` replaced on ``obj`` (an ID property group), or None. A library override
+    keeps it in its scene as well: Blender re-makes an override from its library when the
+    file opens and keeps only the properties the library has, so a custom property added on
+    the override is gone then (its material slots are kept)."""
+    if obj is None:
+        return None
+    record = obj.get(RECORD)
+    if record is not None or obj.override_library is None:
+        return record
+    for scene in bpy.data.scenes:
+        for entry in scene.get(OVERRIDE_RECORDS, ()):
+            if entry.get("object") == obj:
+                return entry.get("record")
+    return None
+
+
+def _set_record(obj, record: dict):
+    obj[RECORD] = record
+    if obj.override_library is not None:
+        _drop_override_record(obj)
+        try:
+            scene = _scene_of(obj)
+        except ValueError:  # in no scene: kept on the object for this session only
+            return
+        entries = [e.to_dict() for e in scene.get(OVERRIDE_RECORDS, ())]
+        scene[OVERRIDE_RECORDS] = [*entries, {"object": obj, "record": record}]
+
+
+def _drop_record(obj):
+    if RECORD in obj.keys():
+        del obj[RECORD]
+    _drop_override_record(obj)
+
+
+def _drop_override_record(obj):
+    """``obj``'s entry out of every scene's OVERRIDE_RECORDS (and those of deleted objects)."""
+    for scene in bpy.data.scenes:
+        entries = scene.get(OVERRIDE_RECORDS)
+        if entries is None:
+            continue
+        kept = [e.to_dict() for e in entries if e.get("object") not in (obj, None)]
+        if kept:
+            scene[OVERRIDE_RECORDS] = kept
+        else:
+            del scene[OVERRIDE_RECORDS]
 
 
 def is_attached(obj):
     """True when `attach` put a map on ``obj`` (and `detach` has not taken it off)."""
-    return RECORD in obj.keys()
+    return record_of(obj) is not None
 
 
 def mode_of(obj) -> str | None:
     """The combine mode of ``obj``'s reflection ("REPLACE", ..., "WORLD"), or None."""
-    record = obj.get(RECORD) if obj is not None else None
+    record = record_of(obj)
     return record.get("mode") if record is not None else None
 
 
 def map_of(obj):
     """The map image ``obj`` reflects (its own, or in World mode the world's), or None."""
-    record = obj.get(RECORD) if obj is not None else None
+    record = record_of(obj)
     if record is None:
         return None
     image = record.get("image")
@@ -106,13 +159,18 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None, shift=None):
     Each slot gets an object-level copy of its material (`slot.link = 'OBJECT'`), so the
     original material and a mesh shared with other objects are untouched. An object without
     slots gets one empty slot on its data (harmless to other users of the data, removed again
-    by `detach`). Attaching again first detaches. Raises ValueError, before changing anything,
-    for linked (library) data or an object that cannot hold materials.
+    by `detach`). A material linked from a library is copied the same way, never edited, so a
+    library override (a local object whose materials may be linked) takes a map too.
+    Attaching again first detaches. Raises ValueError, before changing anything, for a linked
+    object (saying to make it a library override), an object without slots whose data is
+    linked, or an object that cannot hold materials.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {', '.join(MODES)}, not {mode!r}")
     if not isinstance(image, bpy.types.Image):
         raise TypeError(f"image must be a bpy.types.Image, not {type(image).__name__}")
+    if obj.library is not None:
+        raise ValueError(linked_object(obj))
     check_local(obj, f"object {obj.name!r}")
     if mode == "WORLD":
         scene = _scene_of(obj)
@@ -120,21 +178,17 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None, shift=None):
         if is_attached(obj):
             detach(obj)
         world = attach_world(scene, image, strength)
-        obj[RECORD] = {"mode": "WORLD", "scene": scene, "world": world, "image": image}
+        _set_record(obj, {"mode": "WORLD", "scene": scene, "world": world, "image": image})
         return
 
     if obj.data is None or not hasattr(obj.data, "materials"):
         raise ValueError(f"object {obj.name!r} ({obj.type}) cannot hold materials")
     if not obj.material_slots:
         check_local(obj.data, f"{obj.type.lower()} data {obj.data.name!r} of {obj.name!r}")
-    for _, data_mat, object_mat in slot_states(obj):
-        for mat in (data_mat, object_mat):
-            if mat is not None:
-                check_local(mat, f"material {mat.name!r} on {obj.name!r}")
 
     old_group = None
     if is_attached(obj):
-        old_group = obj[RECORD].get("group")
+        old_group = record_of(obj).get("group")
         detach(obj, tidy=False)  # its groups may serve again: tidied below
 
     added_slot = not obj.material_slots
@@ -151,7 +205,7 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None, shift=None):
         slot.link = "OBJECT"
         slot.material = copies[key]
 
-    obj[RECORD] = {
+    record = {
         "mode": mode,
         "image": image,
         "added_slot": added_slot,
@@ -159,27 +213,37 @@ def attach(obj, image, mode, strength=1.0, ior=1.45, ground=None, shift=None):
         "copies": list(copies.values()),
         "group": group,
     }
+    _set_record(obj, record)
     remove_unused_groups(old_group)
+
+
+def linked_object(obj) -> str:
+    """One line for an object linked from a library (read-only): what to do instead. A library
+    override of it is local, and its linked materials are copied, never edited."""
+    return (
+        f"object {obj.name!r} is linked from {obj.library.filepath} (read-only): make it a "
+        "library override (Object > Library Override > Make) and generate again"
+    )
 
 
 def detach(obj, tidy=True):
     """Undo `attach`: restore every slot's link and object-level material, then delete the
     copies, and (``tidy``) the reflection and lookup groups this module made once nothing uses
     them."""
-    record = obj.get(RECORD)
+    record = record_of(obj)
     if record is None:
         return
     check_local(obj, f"object {obj.name!r}")
+    record = record.to_dict()  # a copy: the record is deleted below
     mode = record.get("mode")
     if mode == "WORLD":
         scene, world = record.get("scene"), record.get("world")
-        del obj[RECORD]
+        _drop_record(obj)
         # The scene's world goes when no other object in WORLD mode still shares it.
         scene_record = scene.get(WORLD_RECORD) if scene is not None else None
         if scene_record is not None and scene_record.get("world") == world:
             sharing = any(
-                other.get(RECORD) is not None and other[RECORD].get("world") == world
-                for other in bpy.data.objects
+                (record_of(other) or {}).get("world") == world for other in bpy.data.objects
             )
             if not sharing:
                 detach_world(scene)
@@ -189,7 +253,7 @@ def detach(obj, tidy=True):
     copies = list(record.get("copies", []))
     group = record.get("group")
     added_slot = bool(record.get("added_slot"))
-    del obj[RECORD]
+    _drop_record(obj)
 
     for slot, (link, object_mat) in zip(obj.material_slots, slots):
         slot.link = "OBJECT"
@@ -357,3 +421,47 @@ def _socket_value(socket):
     if socket.is_linked:
         return socket.links[0].from_socket
     return tuple(socket.default_value)
+
+
+# --- library overrides across save and open ----------------------------------------------------
+# An override's own settings (Reflect the Plate, its screen bounds) are not kept either:
+# Blender 5.x records the settings' pointer as a whole and cannot apply it when the file
+# opens. So they travel in the override's record in its scene too.
+
+
+@bpy.app.handlers.persistent
+def _keep_override_settings(*_args):
+    for scene in bpy.data.scenes:
+        for entry in scene.get(OVERRIDE_RECORDS, ()):
+            obj = entry.get("object")
+            if obj is not None:
+                settings = obj.virtual_reflections
+                entry["settings"] = {
+                    "enabled": settings.enabled,
+                    "bounds": list(settings.bounds),
+                }
+
+
+@bpy.app.handlers.persistent
+def _restore_override_settings(*_args):
+    for scene in bpy.data.scenes:
+        for entry in scene.get(OVERRIDE_RECORDS, ()):
+            obj, kept = entry.get("object"), entry.get("settings")
+            if obj is not None and kept is not None and obj.is_editable:
+                obj.virtual_reflections.enabled = bool(kept.get("enabled", False))
+                obj.virtual_reflections.bounds = tuple(kept.get("bounds", (0.0,) * 4))
+
+
+_HANDLERS = (("save_pre", _keep_override_settings), ("load_post", _restore_override_settings))
+
+
+def register():
+    for name, function in _HANDLERS:
+        if function not in getattr(bpy.app.handlers, name):
+            getattr(bpy.app.handlers, name).append(function)
+
+
+def unregister():
+    for name, function in _HANDLERS:
+        while function in getattr(bpy.app.handlers, name):
+            getattr(bpy.app.handlers, name).remove(function)

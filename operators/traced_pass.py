@@ -65,7 +65,7 @@ def applies(scene, objects) -> bool:
 
 
 def _group(obj):
-    record = obj.get(shading.RECORD)
+    record = shading.record_of(obj)
     return record.get("group") if record is not None else None
 
 

@@ -632,13 +632,23 @@ def test_linked_data_is_refused_before_anything_changes(shading, clean_file, tmp
     objects = [linked_obj, local_with_linked_mat, local_with_linked_mesh]
     before = snapshot(shading, scene, objects[1:])
     for obj, words in [
-        (linked_obj, "object 'LibObj' is linked"),
-        (local_with_linked_mat, "material 'LibMat'"),
+        (linked_obj, "object 'LibObj' is linked .*Object > Library Override > Make"),
         (local_with_linked_mesh, "data 'BareMesh'"),
     ]:
         with pytest.raises(ValueError, match=words):
             shading.attach(obj, image, "REPLACE")
         assert not shading.is_attached(obj)
+    assert snapshot(shading, scene, objects[1:]) == before
+    assert vr_leftovers() == []
+    # A linked material is copied onto the object, never edited (issue 40: a library
+    # override's materials are the library's); detach gives the slot back.
+    lib_mat = data_to.materials[0]
+    colour = tuple(lib_mat.diffuse_color)
+    shading.attach(local_with_linked_mat, image, "REPLACE")
+    slot = local_with_linked_mat.material_slots[0]
+    assert slot.link == "OBJECT" and slot.material.library is None
+    assert lib_mat.library is not None and tuple(lib_mat.diffuse_color) == colour
+    shading.detach(local_with_linked_mat)
     assert snapshot(shading, scene, objects[1:]) == before
     assert vr_leftovers() == []
 
