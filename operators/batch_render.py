@@ -24,7 +24,7 @@ from ..virtual_reflections.imagefiles import (
     read_header,
     read_rgba,
 )
-from ..virtual_reflections.memory import check_fits, plate_job_bytes
+from ..virtual_reflections.memory import check_fits, plate_job_bytes, render_job_bytes
 from . import compositor, floor, maps, plate, sequence, shading, world_probe
 from .batch_options import BatchOptions
 from .batch_signals import raise_if_signalled
@@ -168,7 +168,9 @@ def shot_name(options: BatchOptions):
 
 
 def render_size(scene):
-    """The render's (w, h) in pixels; ValueError (one line) when under one pixel."""
+    """The render's (w, h) in pixels; ValueError (one line) when under one pixel,
+    MemoryLimitError (one line, exit 1) when its render cannot fit in memory (a render that
+    runs out of it aborts the process without a word)."""
     percent = scene.render.resolution_percentage
     size = (
         scene.render.resolution_x * percent // 100,
@@ -180,7 +182,28 @@ def render_size(scene):
             f"({scene.render.resolution_x}x{scene.render.resolution_y} at {percent}%): "
             "under one pixel; raise --scale"
         )
+    check_fits(
+        render_job_bytes(*size, render_passes(scene), scene.render.use_compositing),
+        f"the {size[0]}x{size[1]} render ({scene.render.resolution_x}x"
+        f"{scene.render.resolution_y} at {percent}%, lower --scale)",
+    )
     return size
+
+
+def render_passes(scene):
+    """How many render passes a render of ``scene`` holds: each view layer's (Combined, the
+    enabled passes, Cycles' own, AOVs), at least one."""
+    count = 0
+    for layer in (v for v in scene.view_layers if v.use):
+        for owner in (layer, getattr(layer, "cycles", None)):
+            if owner is not None:
+                count += sum(
+                    1
+                    for key in dir(owner)
+                    if key.startswith("use_pass_") and getattr(owner, key, False) is True
+                )
+        count += len(getattr(layer, "aovs", ()))
+    return max(1, count)
 
 
 def not_a_plate(outputs, plates):

@@ -16,6 +16,7 @@ import contextlib
 import os
 import re
 import resource
+import subprocess
 import sys
 import tempfile
 
@@ -118,33 +119,109 @@ def quiet_stderr():
         os.close(saved)
 
 
+# The keeper of held stderr (`held_stderr`): a small process that holds what arrives on its
+# stdin until the control pipe says "R" (replay it on its stdout, the real stderr) or "D"
+# (drop it). A process that dies inside the block (an abort, the out-of-memory killer) says
+# nothing, its end of the control pipe closes, and its last lines are replayed.
+_KEEPER = """
+import os, select, signal, sys
+for s in (signal.SIGINT, signal.SIGTERM):
+    signal.signal(s, signal.SIG_IGN)
+ctl, held, word, watch = int(sys.argv[1]), [], None, [0, int(sys.argv[1])]
+while word is None:
+    for fd in select.select(watch, [], [])[0]:
+        chunk = os.read(fd, 65536 if fd == 0 else 1)
+        if fd == ctl:
+            word = chunk  # b"R", b"D", or b"" when the process died
+        elif chunk:
+            held.append(chunk)
+        else:
+            watch.remove(0)
+os.set_blocking(0, False)  # what was written before the word is in the pipe: take it all
+try:
+    while chunk := os.read(0, 65536):
+        held.append(chunk)
+except BlockingIOError:
+    pass
+if word != b"D":
+    sys.stdout.buffer.write(b"".join(held))
+"""
+
+
+def _start_keeper(stderr_fd):
+    """(process, data write end, control write end) of a keeper replaying on ``stderr_fd``;
+    None where none can start (no Python executable, e.g. a Blender without one)."""
+    exe = sys.executable or ""
+    if not os.path.basename(exe).lower().startswith("python"):
+        return None
+    data_r, data_w = os.pipe()
+    ctl_r, ctl_w = os.pipe()
+    try:
+        keeper = subprocess.Popen(
+            [exe, "-I", "-S", "-c", _KEEPER, str(ctl_r)],
+            stdin=data_r,
+            stdout=stderr_fd,
+            stderr=subprocess.DEVNULL,
+            pass_fds=(ctl_r,),
+            start_new_session=True,  # Ctrl-C at the terminal is the batch's, not the keeper's
+        )
+    except OSError:
+        os.close(data_w)
+        os.close(ctl_w)
+        return None
+    finally:
+        os.close(data_r)
+        os.close(ctl_r)
+    return keeper, data_w, ctl_w
+
+
 @contextlib.contextmanager
 def held_stderr():
     """Hold what is printed on the process's stderr (fd 2: Blender's and the libraries' own
     lines) while the block runs: replayed when it succeeds, dropped when it raises, so that
-    a failure is the tool's one line."""
+    a failure is the tool's one line; and replayed when the process dies inside the block
+    (an abort under a memory limit), so its last lines are never lost. A keeper process
+    holds the lines (`_KEEPER`); without one, a temporary file (lost if the process dies)."""
     try:
         sys.stderr.flush()
         saved = os.dup(2)
-        held = tempfile.TemporaryFile()
     except (OSError, ValueError, AttributeError):
         yield
         return
+    keeper = _start_keeper(saved)
+    held = None
+    if keeper is None:
+        try:
+            held = tempfile.TemporaryFile()
+        except OSError:
+            os.close(saved)
+            yield
+            return
     ok = False
     try:
-        os.dup2(held.fileno(), 2)
+        if keeper is not None:
+            os.dup2(keeper[1], 2)
+            os.close(keeper[1])
+        else:
+            os.dup2(held.fileno(), 2)
         yield
         ok = True
     finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        if ok:
+        os.dup2(saved, 2)  # everything the block wrote is in the keeper's pipe now
+        if keeper is not None:
+            with contextlib.suppress(OSError):
+                os.write(keeper[2], b"R" if ok else b"D")
+            os.close(keeper[2])
+            keeper[0].wait()  # its replay comes before anything printed after the block
+        elif ok:
             held.seek(0)
             data = held.read()
             if data:
                 with contextlib.suppress(OSError):
                     os.write(2, data)
-        held.close()
+        if held is not None:
+            held.close()
+        os.close(saved)
 
 
 def openimageio():

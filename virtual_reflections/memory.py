@@ -64,3 +64,14 @@ def check_fits(need: int, what: str) -> None:
             f"{what} needs about {need / 2**30:.1f} GiB of memory, "
             f"{have / 2**30:.1f} GiB available: refused before starting"
         )
+
+
+def render_job_bytes(width: int, height: int, passes: int = 1, compositing: bool = False) -> int:
+    """An upper bound of the peak memory of rendering ``width`` x ``height`` pixels with
+    ``passes`` render passes in all (each view layer's, Combined included) and reading it
+    back: per pass the renderer's buffer and the render result (float RGBA, 16 bytes a
+    pixel each), plus four float RGBA copies (the EXR written and read back, the CG element,
+    the composite) and two more when the compositor runs. Measured: a 6400x3200 Cycles
+    render of one pass peaks at about 85 bytes a pixel (this says 96)."""
+    copies = 2 * max(1, passes) + 4 + (2 if compositing else 0)
+    return width * height * 16 * copies

@@ -523,3 +523,80 @@ def test_deep_exr_plate_is_refused(shot, tmp_path):
     assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
     assert "deep image" in r.stderr and "--flatten" in r.stderr, r.stderr
     assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+# 34: damaged still plates in frame-range mode: stderr is exactly the tool's one line.
+@pytest.mark.parametrize("damage", ["corrupt-exr", "truncated-jpeg", "truncated-exr"])
+def test_a_damaged_still_plate_in_a_frame_range_is_one_line(shot, tmp_path, damage):
+    blend, _ = shot
+    rng = np.random.default_rng(7)
+    noise = rng.random((32, 64, 3), dtype=np.float32)
+    kind, ext = damage.split("-")
+    plate = tmp_path / f"damaged.{ext}"
+    buf = oiio.ImageBuf(oiio.ImageSpec(64, 32, 3, "half" if ext == "exr" else "uint8"))
+    buf.set_pixels(oiio.ROI(), noise if ext == "exr" else (noise * 255).astype(np.uint8))
+    assert buf.write(str(plate))
+    data = plate.read_bytes()
+    if kind == "corrupt":  # the header whole, the pixels' bytes overwritten
+        cut = len(data) // 3
+        plate.write_bytes(data[:cut] + bytes(rng.integers(0, 256, len(data) - cut, np.uint8)))
+    else:
+        plate.write_bytes(data[: len(data) * 2 // 3])
+    out = tmp_path / "out"
+    r = run(blend, "--plate", plate, "--out", out, "--frames", "1-2", *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert str(plate) in r.stderr
+    assert not out.exists()
+
+
+# 31: a render too large for the memory left is refused up front, one line (it aborted,
+# exit 134, stderr empty).
+def test_a_render_larger_than_memory_is_refused_up_front(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1", *SMALL)
+    r = run(*args, "--scale", 10000, "--samples", 1, address_space=3 << 30)
+    assert r.returncode == 1 and one_line(r), (r.returncode, r.stderr[-2000:])
+    assert "6400x3200 render" in r.stderr and "memory" in r.stderr
+    assert not list(out.glob("shot*"))
+
+
+# 31: a render that dies (an abort under a memory limit) still shows Blender's last lines:
+# the lines held back during a render are replayed when the process dies in it.
+def test_a_render_that_dies_still_shows_its_last_lines(shot, tmp_path):
+    blend, plates = shot
+    out = tmp_path / "out"
+    script = (
+        "import os, sys, bpy\n"
+        f"sys.path.insert(0, {str(ROOT)!r})\n"
+        "import render_shot\n"
+        "@bpy.app.handlers.persistent\n"
+        "def die(*_):\n"
+        "    os.write(2, b'Error: out of memory in the renderer, its last words\\n')\n"
+        "    os.abort()\n"
+        "bpy.app.handlers.render_pre.append(die)\n"
+        "sys.exit(render_shot.main(sys.argv[1:]))\n"
+    )
+    args = (blend, "--plate", pattern(plates), "--out", out, "--frames", "1", *SMALL)
+    r = subprocess.run(
+        [sys.executable, "-c", script, *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == -signal.SIGABRT, (r.returncode, r.stderr[-2000:])
+    assert "out of memory in the renderer, its last words" in r.stderr, r.stderr[-2000:]
+
+
+# 31: held lines are still dropped when the block fails (the tool's one line says it) and
+# replayed when it succeeds.
+def test_held_stderr_replays_on_success_and_drops_on_failure(capfd):
+    atomic_files = addon_part("virtual_reflections.atomic_files")
+    with atomic_files.held_stderr():
+        os.write(2, b"kept\n")
+    with pytest.raises(RuntimeError), atomic_files.held_stderr():
+        os.write(2, b"dropped\n")
+        raise RuntimeError
+    os.write(2, b"after\n")
+    assert capfd.readouterr().err == "kept\nafter\n"
