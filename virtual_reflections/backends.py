@@ -113,8 +113,22 @@ def cache_folder() -> str:
     return os.path.join(base, "virtual-reflections", "numba")
 
 
+_preferred = []  # the back end a caller prefers when VR_GATHER names none (`prefer`)
+
+
+def prefer(name: str) -> None:
+    """Use back end `name` ('numba', 'opencv' or 'numpy') when VR_GATHER names none.
+
+    The engine's command line makes one map per process and prefers NumPy: importing Numba
+    and loading its kernels costs more than they save on one map (1.4-3.6 times slower per
+    call, benchmarks/cli_backend_bench.py); a process making many maps keeps the default."""
+    if name not in NAMES:
+        raise ValueError(f"back end must be one of {', '.join(NAMES)}, got {name!r}")
+    _preferred[:] = [name]
+
+
 def _forced() -> str:
-    return os.environ.get("VR_GATHER", "").strip().lower()
+    return os.environ.get("VR_GATHER", "").strip().lower() or "".join(_preferred)
 
 
 def backend() -> str:

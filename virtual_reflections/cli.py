@@ -31,6 +31,7 @@ import signal
 import sys
 import time
 
+from . import backends
 from .atomic_files import ImageError, same_file
 from .envmap import DEFAULT_SIZE
 from .imagefiles import check_writable, read_header, read_plate, write_map
@@ -285,6 +286,7 @@ def main(argv=None) -> int:
     sys.unraisablehook = hold_interrupts(hook, held)
     try:
         args = build_parser().parse_args(_numbers_after_bbox(argv))
+        backends.prefer("numpy")  # one map per process: NumPy is faster than loading Numba
         if args.command == "envmap":
             run_envmap(args)
         else:

@@ -188,3 +188,28 @@ def test_every_option_says_what_it_does():
         silent = [a.dest for a in sub._actions if a.dest != "help" and not (a.help or "").strip()]
         assert not silent, (name, silent)
     assert set(commands.choices) == {"envmap", "segment"}
+
+
+def test_a_one_shot_map_runs_on_numpy_without_loading_numba(tmp_path):
+    """Issue 42: one map per process is faster on NumPy than after loading Numba's kernels
+    (benchmarks/cli_backend_bench.py): the command line does not import Numba unless
+    VR_GATHER asks for it."""
+    pytest.importorskip("numba")  # requirements/blender45.txt installs it: CI runs this
+    plate = tmp_path / "plate.png"
+    from virtual_reflections.imagefiles import write_rgba
+
+    write_rgba(str(plate), np.full((24, 32, 4), 0.5, np.float32))
+    script = (
+        "import sys; from virtual_reflections import cli;"
+        "code = cli.main(sys.argv[1:]); print('numba' in sys.modules); sys.exit(code)"
+    )
+    args = ["envmap", str(plate), "-o", str(tmp_path / "m.exr"), "--bbox", "8", "6", "20", "18"]
+    args += ["--hfov", "50", "--width", "64"]
+    for gather, loaded in (("", "False"), ("numba", "True")):
+        env = {k: v for k, v in os.environ.items() if k != "VR_GATHER"}
+        if gather:
+            env["VR_GATHER"] = gather
+        r = subprocess.run([sys.executable, "-c", script, *args], cwd=ROOT, env=env,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.split()[-1] == loaded, (gather, r.stdout)
