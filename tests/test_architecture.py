@@ -24,6 +24,11 @@ And one rule on every Python file of the repository (hidden folders such as `.ve
    file, a sub-command's `add_parser(...)`) passes `allow_abbrev=False`: argparse's prefix
    matching takes `--ou` for `--out`, which bypassed the farm's refusal of `--out` after `--`
    (issue 40, row 30).
+
+And one on the engine's public surface:
+6. every function or class in `virtual_reflections.__all__` (and every public function of a
+   module listed there, as `cache`) has a numpydoc docstring: a one-line summary and, for a
+   function that takes parameters, a Parameters section (issue 43, item 7).
 """
 
 from __future__ import annotations
@@ -599,4 +604,95 @@ def test_the_parser_rule_sees_subclasses_and_sub_commands(tmp_path):
         "a.py:4 P(...)",
         "a.py:6 add_parser(...)",
         "b/c.py:2 ArgumentParser(...)",
+    ]
+
+
+# --- the engine's public names are documented (numpydoc) -----------------------------------
+
+
+def engine_public_defs(root: Path) -> dict[str, ast.AST]:
+    """{dotted name: def or class node} of every function or class in `__all__` of the engine's
+    `__init__.py` (imported there `from .module import name`), and of the public top-level
+    functions of every module it lists (`from . import cache`)."""
+    package = root / ENGINE
+    tree = ast.parse((package / "__init__.py").read_text(encoding="utf-8"))
+    names = next(
+        ast.literal_eval(node.value)
+        for node in tree.body
+        if isinstance(node, ast.Assign)
+        and any(getattr(t, "id", "") == "__all__" for t in node.targets)
+    )
+    origin = {}  # name -> (module, name there, whole module?)
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            for alias in node.names:
+                if node.module:
+                    origin[alias.asname or alias.name] = (node.module, alias.name, False)
+                else:
+                    origin[alias.asname or alias.name] = (alias.name, None, True)
+    defs = {}
+    for name in names:
+        if name not in origin:
+            continue
+        module, there, whole = origin[name]
+        body = ast.parse((package / f"{module}.py").read_text(encoding="utf-8")).body
+        for node in body:
+            if not isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                continue
+            if (whole and not node.name.startswith("_") and isinstance(node, ast.FunctionDef)) or (
+                not whole and node.name == there
+            ):
+                defs[f"{module}.{node.name}"] = node
+    return defs
+
+
+def docstring_problems(defs: dict[str, ast.AST]) -> list[str]:
+    """Each def without a numpydoc docstring: a one-line summary (ending in a full stop, a
+    blank line or nothing after it) and, for a function that takes parameters, a Parameters
+    section."""
+    problems = []
+    for name, node in sorted(defs.items()):
+        doc = ast.get_docstring(node)
+        if not doc:
+            problems.append(f"{name}: no docstring")
+            continue
+        lines = doc.splitlines()
+        if not lines[0].strip().endswith(".") or (len(lines) > 1 and lines[1].strip()):
+            problems.append(f"{name}: the first line is not a one-line summary")
+        if isinstance(node, ast.FunctionDef):
+            a = node.args
+            takes = [*a.posonlyargs, *a.args, *a.kwonlyargs, *filter(None, (a.vararg, a.kwarg))]
+            if takes and not any(
+                line.strip() == "Parameters" and nxt.strip().startswith("---")
+                for line, nxt in zip(lines, lines[1:])
+            ):
+                problems.append(f"{name}: no Parameters section")
+    return problems
+
+
+def test_the_engine_public_names_have_numpydoc_docstrings():
+    defs = engine_public_defs(REPO)
+    assert {"envmap.environment_map", "params.Params", "cache.set_limit"} <= set(defs)
+    problems = docstring_problems(defs)
+    assert not problems, _report("engine public names without a numpydoc docstring", problems)
+
+
+def test_the_docstring_rule_sees_summaries_and_parameters(tmp_path):
+    good = '"""Do it.\n\n    Parameters\n    ----------\n    x : int\n        The x.\n    """'
+    root = _package(
+        tmp_path,
+        {
+            f"{ENGINE}/__init__.py": "from . import c\nfrom .m import A, f, g, h\n"
+            "__all__ = ['A', 'c', 'f', 'g']\n",
+            f"{ENGINE}/m.py": f"class A:\n    '''An a; semicolons\n    run on.'''\n"
+            f"def f(x):\n    {good}\ndef g(x):\n    '''Do it.'''\ndef h():\n    pass\n",
+            f"{ENGINE}/c.py": "def k():\n    '''K.'''\ndef _p():\n    pass\ndef q(y):\n    pass\n",
+        },
+    )
+    defs = engine_public_defs(root)
+    assert sorted(defs) == ["c.k", "c.q", "m.A", "m.f", "m.g"]
+    assert docstring_problems(defs) == [
+        "c.q: no docstring",
+        "m.A: the first line is not a one-line summary",
+        "m.g: no Parameters section",
     ]
