@@ -28,7 +28,18 @@ _state = {"limit": DEFAULT_LIMIT, "bytes": 0}
 
 
 def nbytes(value) -> int:
-    """The bytes of the NumPy arrays a value holds (its dataclass fields, tuples of them)."""
+    """The bytes of the NumPy arrays a value holds.
+
+    Parameters
+    ----------
+    value : object
+        An array, a tuple or list of values, or a dataclass whose fields are values; an array
+        sharing a base with one already counted is counted once.
+
+    Returns
+    -------
+    int
+    """
     seen, total, stack = set(), 0, [value]
     while stack:
         item = stack.pop()
@@ -45,7 +56,18 @@ def nbytes(value) -> int:
 
 
 def set_limit(limit: int) -> None:
-    """The budget in bytes shared by every bounded cache; tables beyond it are dropped now."""
+    """Set the budget in bytes shared by every bounded cache; tables beyond it are dropped now.
+
+    Parameters
+    ----------
+    limit : int
+        Bytes, at least 0 (0 keeps nothing).
+
+    Raises
+    ------
+    ValueError
+        A negative limit.
+    """
     if limit < 0:
         raise ValueError(f"the cache limit must be >= 0 bytes, got {limit}")
     with _lock:
@@ -54,11 +76,22 @@ def set_limit(limit: int) -> None:
 
 
 def limit() -> int:
+    """The budget in bytes shared by every bounded cache (`set_limit`).
+
+    Returns
+    -------
+    int
+    """
     return _state["limit"]
 
 
 def cached_bytes() -> int:
-    """Bytes held by every bounded cache together."""
+    """Bytes held by every bounded cache together.
+
+    Returns
+    -------
+    int
+    """
     return _state["bytes"]
 
 
@@ -69,7 +102,18 @@ def _evict(room: int) -> None:
 
 
 def bounded(fn):
-    """Memoize ``fn`` (hashable arguments) in the shared, byte-bounded cache."""
+    """Memoize a function in the shared, byte-bounded cache.
+
+    Parameters
+    ----------
+    fn : callable
+        Called with positional, hashable arguments; its value's arrays are counted (`nbytes`).
+
+    Returns
+    -------
+    callable
+        `fn` memoized, with `cache_info()` and `cache_clear()` as `functools.lru_cache`'s.
+    """
     stats = {"hits": 0, "misses": 0}
 
     @functools.wraps(fn)

@@ -43,12 +43,28 @@ def _scratch(name: str, shape: tuple) -> np.ndarray:
 
 
 def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None) -> np.ndarray:
-    """One filtered gather: (H, W, 3) float32 clean linear plate -> (h, w, 3) float32 map.
+    """Apply a lookup table to a plate: one filtered gather.
 
-    The plate must have the size the table was built for. `pyramids`: a dict the caller keeps
-    for this plate (its pixels unchanged while the dict lives): the plate's mip pyramid is
-    built once per set of levels and kept there, so several maps of one plate (several
-    objects, a regeneration) share it.
+    Parameters
+    ----------
+    table : LookupTable
+        Built for this plate's size (`lookup_table`, `build_table`).
+    plate : (H, W, 3) float32 ndarray
+        Clean scene-linear Rec.709 pixels (`colour.clean_plate`), origin top-left, y down.
+    pyramids : dict, optional
+        Kept by the caller for this plate while its pixels are unchanged: the plate's mip
+        pyramid is built once per set of levels and kept here, so several maps of one plate
+        (several objects, a regeneration) share it.
+
+    Returns
+    -------
+    (h, w, 3) float32 ndarray
+        The environment map in `table.layout`, scene-linear Rec.709.
+
+    Raises
+    ------
+    ValueError
+        The plate's size is not the one the table was built for.
     """
     seg = table.segmentation
     if plate.shape[:2] != (seg.height, seg.width):
@@ -134,12 +150,27 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
 
 def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None):
-    """The map split at its sky prior (fill.py): -> (the map with the prior black (h, w, 3),
-    each texel's weight of the prior (h, w) float32 in 0..1), or None when the table has no
-    prior (no world horizon). The prior is the fill above the horizon: every direction there
-    the plate does not show. The map is linear in the prior, so the map at the prior's own
-    level minus the map with it black, over that level, is the weight (probe.py puts an HDRI
-    in its place)."""
+    """Split a map at its sky prior (fill.py): the map without it and the prior's weight.
+
+    The prior is the fill above the world's horizon, every direction there the plate does not
+    show. The map is linear in the prior, so (map with a neutral prior of level 1 - map with it
+    black) / that level is each texel's weight (probe.py puts an HDRI in its place).
+
+    Parameters
+    ----------
+    table : LookupTable
+        As for `apply_table`.
+    plate : (H, W, 3) float32 ndarray
+        Clean scene-linear Rec.709 pixels of the table's plate size.
+    pyramids : dict, optional
+        As for `apply_table`; both gathers share one pyramid.
+
+    Returns
+    -------
+    tuple of ((h, w, 3) float32, (h, w) float32) or None
+        The map with the prior black, and each texel's weight of the prior in 0..1; None when
+        the table has no prior (no world horizon, `Params.up`).
+    """
     fill = table.fill
     if fill is None or fill.sky is None or not (fill.sky < 1).any():
         return None
@@ -193,10 +224,33 @@ def environment_map(
     layout: str = "latlong",
     size: int | None = None,
 ) -> np.ndarray:
-    """The paper's environment map of `plate` around the object at `bbox`.
+    """The paper's environment map of a plate around one object.
 
-    NaN/Inf pixels are replaced (see colour.clean_plate); the table is cached, so calling
-    again with the same plate size, bounds, params and layout costs only the gather.
+    NaN/Inf pixels are replaced (`colour.clean_plate`); the table is cached, so calling again
+    with the same plate size, bounds, params and layout costs only the gather.
+
+    Parameters
+    ----------
+    plate : (H, W) or (H, W, C) ndarray
+        Scene-linear Rec.709 pixels, origin top-left, y down.
+    bbox : sequence of 4 floats
+        The object's bounds (x0, y0, x1, y1) in plate pixels, x1/y1 exclusive.
+    params : Params, optional
+        The method and its parameters (default: the paper's).
+    layout : {"latlong", "cube"}, optional
+        The map's layout (docs/conventions.md).
+    size : int, optional
+        A lat-long's width or a cube's face size; default `DEFAULT_SIZE[layout]`.
+
+    Returns
+    -------
+    (h, w, 3) float32 ndarray
+        A lat-long (size / 2, size) or a cube (6 size, size), scene-linear Rec.709.
+
+    Raises
+    ------
+    ValueError
+        Bad bounds, params, layout or size.
     """
     clean = clean_plate(plate).pixels
     h, w = clean.shape[:2]

@@ -1,4 +1,4 @@
-"""Parameters of the paper's segmentation, validated once at the edge.
+"""The methods and their parameters (Params), validated once at the edge; the sky gains.
 
 Defaults come from the paper (§3.2): enlarge the object's bounds by 5–10 % of the image
 size (we take 7.5 %) and keep region X at least 10–20 % (we take 15 %) away from the border.
@@ -35,12 +35,26 @@ ROUGH_SKY_RATIOS = {
 
 
 def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None) -> float:
-    """The sky prior's gain for the surroundings ``kind`` (a key of SKY_GAINS; another, as
-    "world" or "custom", is "auto") seen by a surface of ``roughness`` (0 for a mirror, or a map
-    that is not pre-filtered): SKY_GAINS times ROUGH_SKY_RATIOS, interpolated linearly in
-    roughness between its knots on the logarithm of the ratio (1 at roughness 0), held beyond
-    the last. ``custom``: the mirror's gain the artist set (Surroundings Custom, its Sky
-    Brightness) in place of SKY_GAINS[kind]; a rough surface's ratio is then Auto's."""
+    """The sky prior's gain for named surroundings, seen by a surface of a given roughness.
+
+    SKY_GAINS[kind] times ROUGH_SKY_RATIOS[kind] interpolated linearly in roughness between its
+    knots on the logarithm of the ratio (1 at roughness 0), held beyond the last; at most
+    MAX_SKY_GAIN.
+
+    Parameters
+    ----------
+    kind : str
+        A key of SKY_GAINS; another (as "world" or "custom") is taken as "auto".
+    roughness : float, optional
+        0 for a mirror or a map that is not pre-filtered, up to 1 (clamped; NaN counts as 0).
+    custom : float, optional
+        The mirror's gain the artist set (Surroundings Custom, its Sky Brightness) in place of
+        SKY_GAINS[kind]; a rough surface's ratio is then Auto's.
+
+    Returns
+    -------
+    float
+    """
     kind = kind if kind in SKY_GAINS else "auto"
     knots = ((0.0, 1.0), *ROUGH_SKY_RATIOS[kind])
     r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
@@ -52,58 +66,65 @@ def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None)
 
 @dataclass(frozen=True)
 class Params:
-    """How the plate is cut into the paper's regions and how the front face is built.
+    """The method and its parameters: how the plate is cut and each map direction is filled.
 
-    enlarge:   growth of the object's bounding box, as a fraction of the image width/height.
-    border:    minimum distance of region X from every image edge, same units (< 0.5).
-    triangles: n triangles for the front face (a multiple of 4, 4..1024), or 0 for the
-               continuous limit n -> infinity.
-    hfov:      horizontal field of view of the plate's camera in degrees, or None. The
-               paper's method ignores it; the camera-view method needs it (or `intrinsics`).
-    method:    "paper" (Ropinski et al. 2004, §3.1–3.2), "ground" (camera view with the ground
-               plane seen from the object: ground.py) or "camera" (camera_view.py, the
-               add-on's Camera View: the plate placed exactly by the camera's field of view,
-               blurred edge extension and fill outside). "frustum", its earlier name, is
-               accepted and stored as "camera".
-    extend_blur, extend_cap: the camera-view method's blur outside the plate's view — pixels of
-               blur per pixel of angular distance, and its cap as a share of the plate height.
-    extend_fade: degrees from the plate's view over which the camera-view method's edge
-               extension fades (a smoothstep in angle) into the fill, or None to extend the
-               edges into every unseen direction (the previous default). 20 (the default) is
-               the accuracy study's choice (docs/accuracy.md).
-    fill_width: half-width in degrees of the elevation window the fill averages.
-    fill_saturation: how much of the plate's colour the fill keeps (0: neutral grey of the
-               same luminance, 1: the plate's colour). With `fill_sides` it applies to the
-               tint both sides share; the difference between left and right is kept.
-    fill_spread: how fast the fill's window widens beyond the plate's elevations (degrees of
-               half-width per degree beyond), so far above or below the plate the fill tends
-               to the whole plate's average; 0 keeps the top or bottom band's.
-    fill_sides: the fill depends on the side too: the plate's left half fills the left, its
-               right half the right, both the directions straight ahead (above and below the
-               plate) and straight behind; the two sides share the band's brightness, so only
-               their colour differs. False: by elevation only (left and right mixed).
-    fill_energy: how bright the fill is, 0..1: 0 the log-average (robust to a sun in view,
-               but darker than the light the plate holds), 1 the arithmetic mean's luminance
-               (the plate's energy), between their geometric blend (0.5, the default).
-    intrinsics: (fx, fy, cx, cy) of the plate camera in plate pixels (lens shift, pixel
-               aspect), for the camera-view and ground methods; overrides hfov.
-    ground:    (ox, oy, oz, height[, radius[, shadow]]) for the ground method: the object's
-               centre in the camera frame (scene units), its height above the ground plane
-               (> 0), the radius of the sphere that stands for it in its contact shadow
-               (ground.py; > 0, default `height`: resting on the ground) and that shadow's
-               strength (0..1, default 1: the share of the sky the sphere hides; 0: none).
-    up:        the world's up direction in the camera frame (the ground plane's normal), for
-               the ground method: the fill of unseen directions is then by elevation above the
-               world's horizon rather than by the camera's own elevation.
-    sky_gain:  with `up`: how many times brighter than the plate's ground (its band 5-40
-               degrees below the horizon, fill.prior_level) the sky is taken to be in the
-               directions above the horizon the plate does not show (fill.sky_share).
-               1.6: the
-               gain that best predicts, in display values, the upper hemisphere of six of
-               Blender's HDRIs from their lower one (docs/ground.md); SKY_GAINS holds it and
-               the gains for open and enclosed surroundings.
-    sky_tint:  the sky prior's colour (linear R, G, B >= 0), its luminance taken out: (1, 1, 1)
-               is neutral (the add-on's, but for the artist's Surroundings Custom).
+    Frozen, validated once in `__post_init__` (ValueError naming the field). Lengths are
+    fractions of the plate's width/height, angles in degrees, vectors in the camera frame.
+
+    Parameters
+    ----------
+    enlarge : float
+        Growth of the object's bounding box, 0..1 (paper §3.2: 5-10 %).
+    border : float
+        Least distance of region X from every plate edge, 0 <= border < 0.5 (paper: 10-20 %).
+    triangles : int
+        n triangles of the front face (a multiple of 4, 4..MAX_TRIANGLES), or 0 for the
+        continuous limit n -> infinity.
+    hfov : float or None
+        The plate camera's horizontal field of view (0..180); the paper's method ignores it,
+        the camera and ground methods need it or `intrinsics`.
+    method : {"paper", "camera", "ground"}
+        "paper" (Ropinski et al. 2004, §3.1-3.2), "camera" (camera_view.py, the add-on's Camera
+        View: the plate placed by the camera's field of view, blurred edge extension, fill
+        outside) or "ground" (the camera view plus the ground plane seen from the object:
+        ground.py). "frustum", the camera method's earlier name, is stored as "camera".
+    extend_blur, extend_cap : float
+        The camera-view method's blur outside the plate's view: pixels of blur per pixel of
+        angular distance (0..100), and its cap as a share of the plate height (0..1].
+    intrinsics : (fx, fy, cx, cy) or None
+        The plate camera in plate pixels (lens shift, pixel aspect); overrides `hfov`.
+    extend_fade : float or None
+        Degrees from the plate's view over which the edge extension fades (a smoothstep in
+        angle) into the fill, 0..180; None extends the edges everywhere (20: docs/accuracy.md).
+    fill_width : float
+        Half-width of the elevation window the fill averages, 0.5..90.
+    fill_saturation : float
+        How much of the plate's colour the fill keeps, 0 (grey of the same luminance)..1; with
+        `fill_sides`, of the tint both sides share (their difference is kept).
+    fill_spread : float
+        Degrees of half-width per degree beyond the plate's elevations by which the fill's
+        window widens (far above or below, the whole plate's average), 0..10; 0 keeps the band's.
+    fill_sides : bool
+        The plate's left half fills the left, its right half the right (both straight ahead
+        and behind), sharing the band's brightness; False: by elevation only.
+    fill_energy : float
+        The fill's brightness, 0 (the log-average, robust to a sun in view but darker)..1 (the
+        arithmetic mean's luminance, the plate's energy), between them a geometric blend.
+    ground : tuple of 4 to 6 floats or None
+        (ox, oy, oz, height[, radius[, shadow]]) for the ground method: the object's centre in
+        the camera frame (scene units), its height above the ground (> 0), the radius of the
+        sphere standing for it in its contact shadow (> 0, default `height`: resting on the
+        ground) and that shadow's strength (0..1, default 1: the share of the sky it hides).
+    up : (x, y, z) or None
+        The world's up (the ground's normal), needed by the ground method: unseen directions
+        are then filled by elevation above the world's horizon, not the camera's.
+    sky_gain : float
+        With `up`: how many times brighter than the plate's ground (its band 5-40 degrees below
+        the horizon, fill.prior_level) the sky is taken to be where the plate does not show it
+        (fill.sky_share), 0..MAX_SKY_GAIN; default SKY_GAINS["auto"] (docs/ground.md).
+    sky_tint : (r, g, b)
+        The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
+        neutral (the add-on's, but for Surroundings Custom).
     """
 
     enlarge: float = 0.075

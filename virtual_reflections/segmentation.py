@@ -23,7 +23,15 @@ from .params import Params
 
 @dataclass(frozen=True)
 class Rect:
-    """An axis-aligned rectangle in continuous plate coordinates (y down)."""
+    """An axis-aligned rectangle in continuous plate coordinates (origin top-left, y down).
+
+    Attributes
+    ----------
+    x0, y0, x1, y1 : float
+        The left, top, right and bottom edges in plate pixels.
+    width, height : float
+        x1 - x0 and y1 - y0.
+    """
 
     x0: float
     y0: float
@@ -41,12 +49,22 @@ class Rect:
 
 @dataclass(frozen=True)
 class Segmentation:
-    """The paper's regions for one object on a W x H plate.
+    """The paper's regions for one object on a W x H plate (Fig. 2b, 3a).
 
-    x:      region X (back face).
-    inner:  inner boundary of the outer ring F.
-    centre: (cx, cy), the object's centre lines, kept strictly inside X.
-    shrunk: True where X had to be made smaller than the object's box (near a border).
+    Attributes
+    ----------
+    width, height : int
+        The plate's size in pixels.
+    bbox : Rect
+        The object's bounds as given.
+    x : Rect
+        Region X, the back face.
+    inner : Rect
+        The inner boundary of the outer ring F.
+    centre : tuple of 2 floats
+        (cx, cy), the object's centre lines, kept strictly inside X.
+    shrunk : bool
+        True where X had to be made smaller than the object's box (near a border).
     """
 
     width: int
@@ -73,10 +91,26 @@ def _region_x_1d(lo: float, hi: float, size: float, enlarge: float, border: floa
 
 
 def segment(width: int, height: int, bbox, params: Params = Params()) -> Segmentation:
-    """Segment a `width` x `height` plate around `bbox` = (x0, y0, x1, y1).
+    """Cut a plate into the paper's regions around an object's bounds (§3.2).
 
-    The box is in plate pixels (origin top-left, y down, x1/y1 exclusive); it may reach
-    outside the plate or have zero area, but x0 <= x1 and y0 <= y1 must hold.
+    Parameters
+    ----------
+    width, height : int
+        The plate's size in pixels (at least 1 each).
+    bbox : sequence of 4 floats
+        (x0, y0, x1, y1) in plate pixels (origin top-left, y down, x1/y1 exclusive); it may
+        reach outside the plate or have zero area, but x0 <= x1 and y0 <= y1.
+    params : Params, optional
+        Its `enlarge` and `border` are read.
+
+    Returns
+    -------
+    Segmentation
+
+    Raises
+    ------
+    ValueError
+        An empty plate, a box that is not finite or has x0 > x1 or y0 > y1.
     """
     if width < 1 or height < 1:
         raise ValueError(f"the plate is empty ({width}x{height} pixels)")

@@ -58,11 +58,25 @@ from .trilinear import MAX_TEXELS, Trilinear, trilinear_samples
 
 @dataclass(frozen=True, eq=False)
 class LookupTable:
-    """Texel -> weighted pyramid pixels for one plate size, segmentation and map layout.
+    """Map texels -> weighted pixels of the plate's mip pyramid, for one plate size and layout.
 
-    index:  (T, 8) int32 rows of the flat bordered pyramid (see mipmap.py), T = map height * width.
-    weight: (T, 8) float32, rows sum to 1. (Both None when `trilinear` holds every texel.)
-    shape:  (H, W) of the map; pyramid levels `first_level` .. `levels` - 1 are needed.
+    Attributes
+    ----------
+    segmentation : Segmentation
+        The object's regions on the plate the table was built for.
+    layout : {"latlong", "cube"}
+    size : int
+        A lat-long's width or a cube's face size.
+    shape : (int, int)
+        (h, w) of the map.
+    levels, first_level : int
+        Pyramid levels `first_level` .. `levels` - 1 are read (mipmap.py).
+    index : (T, 8) int32 ndarray or None
+        Rows of the flat bordered pyramid (mipmap.py), T = h * w (or the texels of `texels`).
+    weight : (T, 8) float32 ndarray or None
+        Their weights, rows summing to 1; both None when other payloads hold every texel.
+    texels, groups, fill, fill_texels, trilinear, supersample, extension
+        The further payloads, as the comments below say (None or empty when unused).
     """
 
     segmentation: Segmentation
@@ -406,8 +420,21 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
 
 
 def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTable:
-    """Build the table for a segmentation (uncached; see `lookup_table`). `params`: the
-    Params (or, for the paper's method, just the number of triangles)."""
+    """Build the table for a segmentation, uncached (see `lookup_table`).
+
+    Parameters
+    ----------
+    seg : Segmentation
+    layout : {"latlong", "cube"}
+    size : int
+        A lat-long's width or a cube's face size.
+    params : Params or int, optional
+        The Params, or for the paper's method just the number of triangles (0: continuous).
+
+    Returns
+    -------
+    LookupTable
+    """
     if not isinstance(params, Params):
         params = Params(triangles=int(params))
     if params.method == "camera":
@@ -564,12 +591,33 @@ def max_size(layout: str) -> int:
 def lookup_table(
     width: int, height: int, bbox: tuple, params: Params, layout: str = "latlong", size: int = 1024
 ) -> LookupTable:
-    """The cached table for a W x H plate, object `bbox` (x0, y0, x1, y1), params and layout.
+    """The cached table for a plate size, an object's bounds, params and layout.
 
-    The camera-view method's table depends on the camera, not on where the object is: one is
-    built per plate size, camera and layout and shared by every object and pose (each gets
-    its own segmentation, which only the paper's method and the add-on's advice read). The
-    ground method's adds, per object position, the texels that see the ground."""
+    The camera-view method's table depends on the camera, not on the object: one per plate size,
+    camera and layout is shared by every object and pose (each gets its own segmentation); the
+    ground method's adds, per object position, the texels that see the ground.
+
+    Parameters
+    ----------
+    width, height : int
+        The plate's size in pixels.
+    bbox : tuple of 4 floats
+        The object's bounds (x0, y0, x1, y1) in plate pixels (origin top-left, y down).
+    params : Params
+    layout : {"latlong", "cube"}, optional
+    size : int, optional
+        A lat-long's width or a cube's face size.
+
+    Returns
+    -------
+    LookupTable
+        Shared: kept in the byte-bounded cache (cache.py), never to be changed.
+
+    Raises
+    ------
+    ValueError
+        As `segment` for bad bounds; an unknown layout or a bad size (`layouts.map_shape`).
+    """
     seg = segment(width, height, bbox, params)
     if params.method == "camera":
         return dataclasses.replace(
