@@ -28,20 +28,40 @@ EXIT_FAILED = 1
 
 class ImageError(ValueError):
     """A plate or map file that cannot be read or written; the message is one line.
-    ``exit_code``: 2, bad input (a missing or unreadable plate, a bad output name)."""
+
+    Attributes
+    ----------
+    exit_code : int
+        2, bad input (a missing or unreadable plate, a bad output name).
+    """
 
     exit_code = EXIT_BAD_INPUT
 
 
 class WriteError(ImageError):
-    """Writing failed mid-run (a full disk, an I/O error): nothing was replaced; exit code 1,
-    worth running again."""
+    """Writing failed mid-run (a full disk, an I/O error); nothing was replaced.
+
+    Attributes
+    ----------
+    exit_code : int
+        1, a failure while working: worth running again.
+    """
 
     exit_code = EXIT_FAILED
 
 
 def same_file(a: str, b: str) -> bool:
-    """True when paths ``a`` and ``b`` name one file (or would: same absolute path)."""
+    """Whether two paths name one file (or would: the same absolute path).
+
+    Parameters
+    ----------
+    a, b : str
+        File paths; either may not exist yet.
+
+    Returns
+    -------
+    bool
+    """
     try:
         return os.path.samefile(a, b)
     except OSError:
@@ -52,8 +72,20 @@ _TEMP = re.compile(r"^\.(?P<stem>.+)\.(?P<pid>\d+)\.(?P<tag>tmp|render)(?:\.\w+)
 
 
 def temp_path(path: str, tag: str = "tmp") -> str:
-    """The hidden temporary name beside ``path`` this process writes it under:
-    ``.<stem>.<pid>.<tag><ext>``."""
+    """The hidden temporary name beside a path that this process writes it under.
+
+    Parameters
+    ----------
+    path : str
+        The target file.
+    tag : str, optional
+        "tmp" or "render" (the tags `remove_stale_temps` knows).
+
+    Returns
+    -------
+    str
+        ``<folder>/.<stem>.<pid>.<tag><ext>``.
+    """
     folder, base = os.path.split(os.path.abspath(path))
     stem, ext = os.path.splitext(base)
     return os.path.join(folder, f".{stem}.{os.getpid()}.{tag}{ext}")
@@ -74,10 +106,23 @@ def pid_alive(pid: int) -> bool:
 
 
 def remove_stale_temps(folder: str, stems, live_ok: bool = False) -> list[str]:
-    """Delete the temporary files of ``stems`` (output file names without extension) in
-    ``folder`` that a writer which is no longer running left (SIGKILL, power loss): never
-    this process's, never a live process's (unless ``live_ok``: the caller holds the lock of
-    these outputs). Returns the paths removed."""
+    """Delete the temporary files that dead writers (SIGKILL, power loss) left for some outputs.
+
+    Never this process's temporaries, never a live process's unless `live_ok`.
+
+    Parameters
+    ----------
+    folder : str
+    stems : iterable of str
+        The outputs' file names without extension.
+    live_ok : bool, optional
+        The caller holds the lock of these outputs: a live process's temporaries go too.
+
+    Returns
+    -------
+    list of str
+        The paths removed.
+    """
     stems = set(stems)
     removed = []
     try:
@@ -177,11 +222,12 @@ def _start_keeper(stderr_fd):
 
 @contextlib.contextmanager
 def held_stderr():
-    """Hold what is printed on the process's stderr (fd 2: Blender's and the libraries' own
-    lines) while the block runs: replayed when it succeeds, dropped when it raises, so that
-    a failure is the tool's one line; and replayed when the process dies inside the block
-    (an abort under a memory limit), so its last lines are never lost. A keeper process
-    holds the lines (`_KEEPER`); without one, a temporary file (lost if the process dies)."""
+    """Hold what is printed on the process's stderr (fd 2) while the block runs.
+
+    Replayed when the block succeeds, dropped when it raises (a failure is the tool's one line),
+    replayed when the process dies inside it (an abort under a memory limit). A keeper process
+    holds the lines (`_KEEPER`); without one a temporary file, lost if the process dies.
+    """
     try:
         sys.stderr.flush()
         saved = os.dup(2)
@@ -278,9 +324,25 @@ def _fsync(path: str) -> None:
 
 
 def commit(temp: str, path: str, width: int, height: int) -> None:
-    """Verify the image ``temp`` (complete, ``width`` x ``height``), flush it to disk and
-    rename it to ``path``. On any failure ``temp`` is removed, ``path`` untouched, and a
-    WriteError (one line) raised. The one way every writer puts an image in place."""
+    """Verify a written temporary image, flush it to disk and rename it into place.
+
+    The one way every writer puts an image in place. On any failure `temp` is removed, `path`
+    left untouched.
+
+    Parameters
+    ----------
+    temp : str
+        The temporary file written (`temp_path`).
+    path : str
+        The target.
+    width, height : int
+        The size the image must have, read back whole.
+
+    Raises
+    ------
+    WriteError
+        One line: the file is unreadable, incomplete, of another size, or cannot be renamed.
+    """
     try:
         verify_image(temp, width, height, what=path)
         _fsync(temp)

@@ -132,7 +132,12 @@ def _forced() -> str:
 
 
 def backend() -> str:
-    """The gathers' back end: 'numba', 'opencv' or 'numpy' (see the module docstring)."""
+    """The gathers' back end, as the module docstring says (VR_GATHER, what imports).
+
+    Returns
+    -------
+    {"numba", "opencv", "numpy"}
+    """
     forced = _forced()
     if forced == "numpy":
         return "numpy"
@@ -142,7 +147,12 @@ def backend() -> str:
 
 
 def available_backends() -> list:
-    """The gathers' back ends that import here, fastest first (NumPy always)."""
+    """The gathers' back ends that import here, fastest first (NumPy always).
+
+    Returns
+    -------
+    list of str
+    """
     names = ["numba"] if kernels() is not None else []
     return names + (["opencv"] if cv2() is not None else []) + ["numpy"]
 

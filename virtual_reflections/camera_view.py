@@ -34,7 +34,20 @@ import numpy as np
 
 
 def intrinsics_from_hfov(width: int, height: int, hfov_deg: float):
-    """(fx, fy, cx, cy) in plate pixels of a centred pinhole with square pixels."""
+    """The intrinsics of a centred pinhole with square pixels and a horizontal field of view.
+
+    Parameters
+    ----------
+    width, height : int
+        The plate's size in pixels.
+    hfov_deg : float
+        The horizontal field of view in degrees (0..180).
+
+    Returns
+    -------
+    tuple of 4 floats
+        (fx, fy, cx, cy) in plate pixels (origin top-left, y down; docs/conventions.md).
+    """
     f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
     return f, f, width / 2.0, height / 2.0
 

@@ -12,7 +12,18 @@ import numpy as np
 
 
 def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
-    """Decode sRGB-encoded values with the sRGB EOTF (0.5 -> 0.214). Returns float32."""
+    """Decode sRGB-encoded values with the sRGB EOTF (0.5 -> 0.214).
+
+    Parameters
+    ----------
+    srgb : array_like
+        sRGB-encoded values, nominally in [0, 1].
+
+    Returns
+    -------
+    float32 ndarray
+        Scene-linear values, same shape.
+    """
     v = np.asarray(srgb, dtype=np.float32)
     return np.where(v <= 0.04045, v / 12.92, ((np.maximum(v, 0) + 0.055) / 1.055) ** 2.4).astype(
         np.float32
@@ -20,7 +31,18 @@ def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
 
 
 def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    """Encode scene-linear values to sRGB in [0, 1] (clipped). Returns float32."""
+    """Encode scene-linear values to sRGB in [0, 1] (clipped first).
+
+    Parameters
+    ----------
+    linear : array_like
+        Scene-linear values.
+
+    Returns
+    -------
+    float32 ndarray
+        sRGB-encoded values in [0, 1], same shape.
+    """
     v = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0)
     return np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055).astype(np.float32)
 
@@ -37,7 +59,18 @@ _SRGB8_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 
 
 def decode_uint(pixels: np.ndarray) -> np.ndarray:
-    """uint8 / uint16 sRGB-encoded pixels -> float32 scene-linear (uint8 through a table)."""
+    """Decode integer sRGB-encoded pixels to scene-linear floats (uint8 through a table).
+
+    Parameters
+    ----------
+    pixels : uint8 or uint16 ndarray
+        sRGB-encoded, full range.
+
+    Returns
+    -------
+    float32 ndarray
+        Scene-linear, same shape.
+    """
     if pixels.dtype == np.uint8:
         return _SRGB8_LUT[pixels]
     return srgb_to_linear(pixels.astype(np.float32) / float(np.iinfo(pixels.dtype).max))
@@ -66,9 +99,25 @@ def as_rgb(pixels: np.ndarray) -> np.ndarray:
 
 
 def clean_plate(linear: np.ndarray) -> Cleaned:
-    """Scene-linear pixels of any channel count -> RGB float32 with NaN/Inf replaced.
+    """Make a plate safe to use: RGB float32 with NaN/Inf replaced.
 
     NaN and -Inf become 0, +Inf the largest finite value of the plate (or 0 if none).
+
+    Parameters
+    ----------
+    linear : (H, W) or (H, W, C) ndarray
+        Scene-linear pixels; grey becomes RGB, alpha and further channels are dropped.
+
+    Returns
+    -------
+    Cleaned
+        `pixels` (H, W, 3) float32 scene-linear Rec.709, and `nonfinite`, how many values
+        were replaced.
+
+    Raises
+    ------
+    ValueError
+        Not an (H, W) or (H, W, C) array, or an empty one.
     """
     rgb = np.ascontiguousarray(as_rgb(linear), dtype=np.float32)
     bad = ~np.isfinite(rgb)

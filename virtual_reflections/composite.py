@@ -10,10 +10,26 @@ import numpy as np
 
 
 def over(render_rgba: np.ndarray, plate: np.ndarray) -> np.ndarray:
-    """Alpha-over: (H, W, 4) premultiplied render over an (H, W, 3) plate -> (H, W, 3) float32.
+    """Alpha-over a premultiplied render onto a plate.
 
-    ``render.rgb + plate * (1 - render.alpha)``, what Blender's Alpha Over node computes for a
-    premultiplied foreground (its default) at factor 1.
+    ``render.rgb + plate * (1 - render.alpha)``: Blender's Alpha Over node for a premultiplied
+    foreground (its default) at factor 1.
+
+    Parameters
+    ----------
+    render_rgba : (H, W, 4) ndarray
+        Premultiplied RGBA, scene-linear.
+    plate : (H, W, 3) ndarray
+        Scene-linear, the render's size.
+
+    Returns
+    -------
+    (H, W, 3) float32 ndarray
+
+    Raises
+    ------
+    ValueError
+        The render is not RGBA or the plate not RGB of the render's size.
     """
     render = np.asarray(render_rgba, dtype=np.float32)
     back = np.asarray(plate, dtype=np.float32)
@@ -27,13 +43,36 @@ def over(render_rgba: np.ndarray, plate: np.ndarray) -> np.ndarray:
 
 
 def nearest_rows(size: int, new_size: int) -> np.ndarray:
-    """For each of ``new_size`` rows (or columns), the row of ``size`` that holds its centre."""
+    """For each row (or column) of a resized image, the source row that holds its centre.
+
+    Parameters
+    ----------
+    size : int
+        Rows of the source.
+    new_size : int
+        Rows of the result.
+
+    Returns
+    -------
+    (new_size,) int ndarray
+    """
     return np.minimum(((np.arange(new_size) + 0.5) * size / new_size).astype(int), size - 1)
 
 
 def resize_nearest(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
-    """(H, W, C) -> (height, width, C), nearest pixel centres; the array itself when the size
-    is already right."""
+    """Resize an image to the nearest pixel centres.
+
+    Parameters
+    ----------
+    pixels : (H, W, C) ndarray
+    height, width : int
+        The new size.
+
+    Returns
+    -------
+    (height, width, C) ndarray
+        The array itself when the size is already right.
+    """
     if pixels.shape[:2] == (height, width):
         return pixels
     ys, xs = nearest_rows(pixels.shape[0], height), nearest_rows(pixels.shape[1], width)
@@ -41,7 +80,17 @@ def resize_nearest(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
 
 
 def union_box(boxes) -> tuple | None:
-    """The smallest box holding every (x0, y0, x1, y1) of ``boxes``; None when there is none."""
+    """The smallest box holding every box given.
+
+    Parameters
+    ----------
+    boxes : iterable of (x0, y0, x1, y1)
+
+    Returns
+    -------
+    tuple of 4 floats or None
+        None when there is no box.
+    """
     boxes = [tuple(b) for b in boxes]
     if not boxes:
         return None
@@ -54,6 +103,17 @@ def union_box(boxes) -> tuple | None:
 
 
 def scale_box(box, sx: float, sy: float) -> tuple:
-    """(x0, y0, x1, y1) with x scaled by ``sx`` and y by ``sy`` (render -> plate pixels)."""
+    """Scale a box's x and y (render -> plate pixels).
+
+    Parameters
+    ----------
+    box : (x0, y0, x1, y1)
+    sx, sy : float
+        The scales of x and y.
+
+    Returns
+    -------
+    tuple of 4 floats
+    """
     x0, y0, x1, y1 = box
     return (x0 * sx, y0 * sy, x1 * sx, y1 * sy)
