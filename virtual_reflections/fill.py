@@ -38,7 +38,17 @@ FILL_ROWS = 96  # the fill is computed on the first mip level at most this many 
 
 
 def fill_level(shapes) -> int:
-    """The mip level the fill is computed on: the first at most FILL_ROWS rows high."""
+    """The mip level the fill is computed on: the first at most FILL_ROWS rows high.
+
+    Parameters
+    ----------
+    shapes : sequence of (h, w)
+        The pyramid's level shapes (`mipmap.level_shapes`), finest first.
+
+    Returns
+    -------
+    int
+    """
     for i, (h, _) in enumerate(shapes):
         if h <= FILL_ROWS:
             return i
@@ -60,10 +70,26 @@ def elevation_deg(directions, up=None) -> np.ndarray:
 
 
 def sky_in_view(intrinsics, width: int, height: int, up) -> float:
-    """The share of the plate's rows, 0..1, whose highest point is above the horizon whose
-    normal is ``up`` (camera frame): 0 when the camera sees no sky at all (ground and walls
-    only), where the fill's sky is the prior alone (`fill_profile`'s ``sky_gain``). Along a
-    row the elevation is highest at one of its ends, so only the ends are tested."""
+    """The share of the plate's rows whose highest point is above the world's horizon.
+
+    0 when the camera sees no sky at all (ground and walls only): the fill's sky is then the prior
+    alone (`fill_profile`'s `sky_gain`). A row's elevation is highest at one of its ends, so only
+    the ends are tested.
+
+    Parameters
+    ----------
+    intrinsics : (fx, fy, cx, cy)
+        The plate camera in plate pixels.
+    width, height : int
+        The plate's size in pixels.
+    up : (x, y, z)
+        The horizon's normal in the camera frame.
+
+    Returns
+    -------
+    float
+        0..1.
+    """
     fx, fy, cx, cy = intrinsics
     rows = np.arange(height) + 0.5
     ends = [
@@ -83,17 +109,38 @@ def fill_geometry(
     sides: int = 1,
     up=None,
 ):
-    """What the fill needs of a plate's geometry at mip `level` of shape (h, w).
+    """What the fill needs of a plate's geometry at one mip level.
 
-    Returns (bins (h * w,) int64: each pixel's 1-degree elevation bin, plus FILL_BINS x its
-    side (0: the plate's left half, 1: its right half; with `sides` = 1 every pixel is side 0),
-    window (sides, 2, FILL_BINS) int64: for every side and bin of the profile the half-open
-    range [lo, hi) of elevation bins it averages, counts (sides, FILL_BINS + 1) float64
-    cumulative pixel counts per elevation bin). The window is the bins within `width_deg` of
-    the bin's elevation, its centre held `width_deg` inside the plate's own range of elevations
-    (so above the plate: the top band; below: the bottom band), widening by `spread` degrees
-    per degree beyond. Elevations are above the horizon whose normal is `up` (camera frame;
-    None: the camera's own, +Y).
+    A profile bin's window is the bins within `width_deg` of its elevation, its centre held
+    `width_deg` inside the plate's own elevations (above the plate: the top band; below: the
+    bottom band), widening by `spread` degrees per degree beyond.
+
+    Parameters
+    ----------
+    shape : (h, w)
+        The level's shape.
+    level : int
+        The mip level (the level's pixels are 2**level plate pixels wide).
+    intrinsics : (fx, fy, cx, cy)
+        The plate camera in plate pixels.
+    width_deg : float
+        Half-width of the elevation window (`Params.fill_width`).
+    spread : float, optional
+        `Params.fill_spread`.
+    sides : {1, 2}, optional
+        2: the plate's left and right halves give separate profiles.
+    up : (x, y, z), optional
+        The horizon's normal in the camera frame; None: the camera's own, +Y.
+
+    Returns
+    -------
+    bins : (h * w,) int64 ndarray
+        Each pixel's 1-degree elevation bin, plus FILL_BINS x its side (0: the plate's left
+        half, 1: its right half; with `sides` = 1 every pixel is side 0).
+    window : (sides, 2, FILL_BINS) int64 ndarray
+        For every side and bin of the profile, the half-open range [lo, hi) of bins it averages.
+    counts : (sides, FILL_BINS + 1) float64 ndarray
+        Cumulative pixel counts per elevation bin.
     """
     fx, fy, cx, cy = intrinsics
     h, w = shape
@@ -234,7 +281,17 @@ def fill_profile(
 
 
 def tint_colour(tint) -> np.ndarray:
-    """(3,) float32: the colour ``tint`` (R, G, B, not black; None: neutral) with luminance 1."""
+    """A colour scaled to luminance 1 (Rec.709).
+
+    Parameters
+    ----------
+    tint : (r, g, b) or None
+        Linear, not black; None: neutral.
+
+    Returns
+    -------
+    (3,) float32 ndarray
+    """
     if tint is None:
         return np.ones(3, np.float32)
     colour = np.asarray(tint, np.float32)
@@ -242,14 +299,25 @@ def tint_colour(tint) -> np.ndarray:
 
 
 def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0) -> float:
-    """The sky prior's level at gain 1 (`fill_profile`): `sky_level` of the pixels
-    `level_pixels` (..., 3) whose elevation bins (`bins`, `fill_geometry` with `up`) lie
-    GROUND_BAND_DEG below the horizon, the band the gain was derived on. When under
-    MIN_GROUND_SHARE of the plate lies there (a camera looking up: the plate is sky and what
-    stands in it), the gain's step from a ground to the sky above it has nothing to stand on:
-    the plate's own level stands for the sky's, divided by Auto's mirror gain, so that the
-    prior is that level times what the Surroundings and the roughness add over Auto's mirror
-    (docs/scenes3d.md, "Where it fails")."""
+    """The sky prior's level at gain 1 (`fill_profile`), from the plate's ground.
+
+    `sky_level` of the pixels GROUND_BAND_DEG below the horizon, the band the gain was derived on.
+    Under MIN_GROUND_SHARE of the plate there (a camera looking up): the whole plate's level over
+    Auto's mirror gain (SKY_GAINS["auto"]; docs/scenes3d.md, "Where it fails").
+
+    Parameters
+    ----------
+    level_pixels : (..., 3) float32 ndarray
+        The fill's mip level, scene-linear.
+    bins : ndarray
+        Their elevation bins (`fill_geometry` with `up`).
+    energy : float, optional
+        `Params.fill_energy`: the log-average brightened toward the mean's luminance.
+
+    Returns
+    -------
+    float
+    """
     pixels = level_pixels.reshape(-1, 3)
     below = HORIZON_BIN - bins % FILL_BINS  # degrees below the horizon (1-degree bins)
     band = (below >= GROUND_BAND_DEG[0]) & (below <= GROUND_BAND_DEG[1])
