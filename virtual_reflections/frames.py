@@ -16,12 +16,24 @@ _PART = re.compile(r"^(-?\d+)(?:(?:-|\.\.)(-?\d+)(?:x(\d+))?)?$")
 
 
 def parse_frames(text: str) -> list[int]:
-    """``"1-240"``, ``"1-10x2"``, ``"5"``, ``"1,3,7-9"`` -> sorted distinct frame numbers.
-    Blender's own syntax (``blender -f 1..10``, ``1,3,5..7``: ``..`` joins the first and last
-    frame, both included) is accepted beside it.
+    """Parse a frame list into sorted distinct frame numbers.
 
-    Raises ValueError (one line, naming the bad part) for anything else, an empty list, an
-    end before its start, a step below 1, or more than MAX_FRAMES frames.
+    ``"1-240"``, ``"1-10x2"``, ``"5"``, ``"1,3,7-9"``; Blender's own syntax (``blender -f 1..10``,
+    ``1,3,5..7``: ``..`` joins the first and last frame, both included) beside it.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    list of int
+
+    Raises
+    ------
+    ValueError
+        One line naming the bad part: anything else, an empty list, an end before its start, a
+        step below 1, or more than MAX_FRAMES frames.
     """
     found = set()
     for part in str(text).replace(" ", "").split(","):
@@ -41,9 +53,22 @@ def parse_frames(text: str) -> list[int]:
 
 
 def user_frame(frame, start=1, duration=0, offset=0, cyclic=False) -> int:
-    """The plate frame shown at scene ``frame`` by an image user (Blender's
-    ``BKE_image_user_frame_get``): ``frame - start + 1`` clamped to 0..duration (wrapped with
-    ``cyclic``), plus ``offset``. ``duration`` 0 (an image user never set up): ``frame``."""
+    """The plate frame an image user shows at a scene frame (``BKE_image_user_frame_get``).
+
+    Parameters
+    ----------
+    frame : int
+        The scene frame.
+    start, duration, offset : int, optional
+        The image user's; `duration` 0 (an image user never set up) gives `frame` itself.
+    cyclic : bool, optional
+        Wrap past the duration instead of holding the last frame.
+
+    Returns
+    -------
+    int
+        ``frame - start + 1`` clamped to 0..duration (wrapped with `cyclic`), plus `offset`.
+    """
     if duration <= 0:
         return frame
     n = frame - start + 1
@@ -55,9 +80,27 @@ def user_frame(frame, start=1, duration=0, offset=0, cyclic=False) -> int:
 
 
 def sequence_path(path: str, number: int) -> str:
-    """The file of frame ``number`` of the sequence whose one file is ``path``: Blender's rule
-    (``BLI_path_sequence_decode``): the last run of digits in the file name before its
-    extension, replaced by the number padded to the run's width. ValueError without digits."""
+    """The file of one frame of a sequence, from one of its files (``BLI_path_sequence_decode``).
+
+    The last run of digits in the file name before its extension is replaced by the number,
+    padded to the run's width.
+
+    Parameters
+    ----------
+    path : str
+        One file of the sequence.
+    number : int
+        The frame.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        The file name holds no digits.
+    """
     folder, name = os.path.split(path)
     stem, ext = os.path.splitext(name)
     m = re.search(r"(\d+)(\D*)$", stem)
@@ -68,9 +111,27 @@ def sequence_path(path: str, number: int) -> str:
 
 
 def sequence_range(path: str, limit: int = MAX_FRAMES) -> tuple[int, int]:
-    """(first, count) of the run of existing files of the sequence whose one file is ``path``:
-    from its own number down and up while the files exist (Blender's image user needs the
-    count; ``Image.frame_duration`` stays 1 for a sequence loaded from Python)."""
+    """The run of existing files of the sequence one of whose files is given.
+
+    From its own number down and up while the files exist (Blender's image user needs the count;
+    ``Image.frame_duration`` stays 1 for a sequence loaded from Python).
+
+    Parameters
+    ----------
+    path : str
+        One file of the sequence.
+    limit : int, optional
+        The most frames counted on either side.
+
+    Returns
+    -------
+    (first, count) : tuple of 2 ints
+
+    Raises
+    ------
+    ValueError
+        The file name holds no digits.
+    """
     stem = os.path.splitext(os.path.basename(path))[0]
     m = re.search(r"(\d+)\D*$", stem)
     if m is None:
@@ -84,15 +145,36 @@ def sequence_range(path: str, limit: int = MAX_FRAMES) -> tuple[int, int]:
 
 
 def is_pattern(text: str) -> bool:
-    """True for a sequence pattern: ``plate.####.exr`` or ``plate.%04d.exr``."""
+    """Whether a path is a sequence pattern: ``plate.####.exr`` or ``plate.%04d.exr``.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    bool
+    """
     return (
         "#" in os.path.basename(text) or re.search(r"%0?\d*d", os.path.basename(text)) is not None
     )
 
 
 def pattern_path(pattern: str, number: int) -> str:
-    """A pattern's file for frame ``number``: a run of n ``#`` -> the number padded to n digits
-    (the last run in the file name), ``%0Nd`` -> printf; negative numbers keep their sign."""
+    """A pattern's file for one frame.
+
+    A run of n ``#`` (the last in the file name) becomes the number padded to n digits, ``%0Nd``
+    is printf's; negative numbers keep their sign.
+
+    Parameters
+    ----------
+    pattern : str
+    number : int
+
+    Returns
+    -------
+    str
+    """
     folder, name = os.path.split(pattern)
     if "#" in name:
         runs = list(re.finditer(r"#+", name))
@@ -104,9 +186,21 @@ def pattern_path(pattern: str, number: int) -> str:
 
 
 def pattern_frame(pattern: str, path: str) -> int | None:
-    """The frame number whose file of ``pattern`` (`pattern_path`) is ``path``, whether the
-    file exists or not, or None: ``plate.####.exr`` names ``plate.0012.exr`` (12), not
-    ``plate.12.exr``. Folders are compared as real paths."""
+    """The frame number whose file of a pattern (`pattern_path`) is a path, existing or not.
+
+    ``plate.####.exr`` names ``plate.0012.exr`` (12), not ``plate.12.exr``; folders are compared
+    as real paths.
+
+    Parameters
+    ----------
+    pattern : str
+    path : str
+
+    Returns
+    -------
+    int or None
+        None when `path` is no file of `pattern`.
+    """
     folder, name = os.path.split(os.path.abspath(path))
     base = os.path.basename(pattern)
     if "#" in base:
@@ -128,4 +222,14 @@ def pattern_frame(pattern: str, path: str) -> int | None:
 
 
 def is_movie_path(path: str) -> bool:
+    """Whether a path names a movie file by its extension (MOVIE_EXTENSIONS).
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    bool
+    """
     return os.path.splitext(path)[1].lower() in MOVIE_EXTENSIONS

@@ -44,8 +44,24 @@ HALF_MAX = 65504.0  # the largest finite half float
 
 
 def check_complete(path: str, what: str = "image") -> tuple[int, int]:
-    """Read ``path`` whole; ImageError (one line) when it cannot be (truncated, damaged).
-    Returns its (width, height): the display window for an EXR."""
+    """Read an image file whole, to know it is not truncated or damaged.
+
+    Parameters
+    ----------
+    path : str
+    what : str, optional
+        What the file is, for the message ("plate", "map").
+
+    Returns
+    -------
+    (width, height) : tuple of 2 ints
+        For an EXR, its display window.
+
+    Raises
+    ------
+    ImageError
+        One line: the file cannot be read whole.
+    """
     oiio = openimageio()
     with quiet_stderr():
         inp = oiio.ImageInput.open(path)
@@ -145,15 +161,41 @@ def colour_channels(names, path: str) -> tuple | None:
 
 
 def plain_rgb_command(path: str, names, colour) -> str:
-    """The oiiotool command that saves the channels ``colour`` (indices into ``names``; None:
-    a LAYER to name) of ``path`` as a plain R, G, B file."""
+    """The oiiotool command that saves some channels of a file as a plain R, G, B file.
+
+    Parameters
+    ----------
+    path : str
+    names : sequence of str
+        The file's channel names.
+    colour : sequence of 3 ints or None
+        Indices into `names` of R, G and B; None: a LAYER for the user to name.
+
+    Returns
+    -------
+    str
+    """
     r, g, b = ("LAYER.R", "LAYER.G", "LAYER.B") if colour is None else (names[i] for i in colour)
     return f"oiiotool {path} --ch R={r},G={g},B={b} -o OUT.exr"
 
 
 def read_header(path: str) -> PlateHeader:
-    """The header of a plate file; ImageError (one line) for a missing, unreadable, empty,
-    deep or colourless (depth-only) file, or one with several colour layers."""
+    """The header of a plate file.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    PlateHeader
+
+    Raises
+    ------
+    ImageError
+        One line: a missing, unreadable, empty, deep or colourless (depth-only) file, or one
+        with several colour layers.
+    """
     oiio = openimageio()
     if os.path.isdir(path):
         raise ImageError(f"plate is a folder, not an image file: {path}")
@@ -266,16 +308,34 @@ def check_writable(path: str) -> str:
 
 
 def write_map(path: str, pixels: np.ndarray, layout: str | None = None, half: bool = True) -> int:
-    """Write a (H, W, 3) float32 scene-linear map (or any picture) atomically, verified.
+    """Write a map (or any picture) atomically, verified.
 
-    .exr: scene-linear half (or float), Rec.709 chromaticities, and for maps the standard
-          `envmap` attribute (LATLONG or CUBE); half floats are clamped to +-65504 (a sun
-          brighter than that would become Inf);
-    .hdr: scene-linear RGBE;
-    .png/.jpg: sRGB-encoded 8-bit; .tif: sRGB-encoded 16-bit.
-    Returns how many values were clamped to fit half floats (0 for other formats).
-    Raises ImageError (bad name, exit 2) or WriteError (the write failed: exit 1); the
-    previous file at ``path`` stays as it was unless the new one is complete.
+    .exr: half (or float), Rec.709 chromaticities, and for maps the standard `envmap` attribute;
+    half floats are clamped to +-65504 (a sun brighter would become Inf). .hdr: RGBE. .png/.jpg:
+    sRGB-encoded 8-bit; .tif: sRGB-encoded 16-bit. A previous file stays unless the new is whole.
+
+    Parameters
+    ----------
+    path : str
+        The file; its extension picks the format.
+    pixels : (H, W, 3) float32 ndarray
+        Scene-linear Rec.709.
+    layout : {"latlong", "cube"} or None, optional
+        Written as the EXR's `envmap` attribute (LATLONG or CUBE); None for a picture.
+    half : bool, optional
+        An EXR in half floats (else float).
+
+    Returns
+    -------
+    int
+        How many values were clamped to fit half floats (0 for other formats).
+
+    Raises
+    ------
+    ImageError
+        A bad file name (exit 2).
+    WriteError
+        The write failed (exit 1).
     """
     ext = check_writable(path)
     pixels = np.ascontiguousarray(pixels, dtype=np.float32)
@@ -377,8 +437,22 @@ def _write_oiio(path: str, pixels: np.ndarray, ext: str) -> None:
 
 
 def read_channels(path: str) -> dict:
-    """Every channel of an image file by name, every part of a multi-part EXR included:
-    {name: (H, W) float32}, top row first, values as stored (renders: scene-linear)."""
+    """Every channel of an image file by name, every part of a multi-part EXR included.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    dict of str to (H, W) float32 ndarray
+        Top row first, values as stored (renders: scene-linear).
+
+    Raises
+    ------
+    ImageError
+        One line: the file is missing or unreadable.
+    """
     oiio = openimageio()
     if not os.path.isfile(path):
         raise ImageError(f"image not found: {path}")
@@ -403,8 +477,23 @@ def read_channels(path: str) -> dict:
 
 
 def read_rgba(path: str) -> np.ndarray:
-    """(H, W, 4) float32 pixels of an image file, top row first, values as stored (an 8-bit
-    file's sRGB codes / 255, an EXR's scene-linear values); alpha 1 where the file has none."""
+    """The RGBA pixels of an image file, values as stored.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    (H, W, 4) float32 ndarray
+        Top row first: an 8-bit file's sRGB codes / 255, an EXR's scene-linear values; alpha 1
+        where the file has none.
+
+    Raises
+    ------
+    ImageError
+        One line: the file is missing or unreadable.
+    """
     oiio = openimageio()
     if not os.path.isfile(path):
         raise ImageError(f"image not found: {path}")
@@ -432,8 +521,21 @@ def read_rgba(path: str) -> np.ndarray:
 
 
 def write_rgba(path: str, rgba: np.ndarray) -> None:
-    """Write an (H, W, 4) float32 premultiplied render as a scene-linear float RGBA EXR (ZIP),
-    atomically and verified as `write_map` (WriteError, exit 1, if the write fails)."""
+    """Write a premultiplied render as a scene-linear float RGBA EXR (ZIP), atomically and verified.
+
+    Parameters
+    ----------
+    path : str
+    rgba : (H, W, 4) float32 ndarray
+        Premultiplied, scene-linear.
+
+    Raises
+    ------
+    ImageError
+        The file cannot be opened for writing (exit 2).
+    WriteError
+        The write failed, as `write_map` (exit 1).
+    """
     oiio = openimageio()
     h, w = rgba.shape[:2]
     tmp = temp_path(path)

@@ -45,8 +45,18 @@ def uninterrupted():
 
 
 def raising(make):
-    """A signal handler raising make(signum): at once, or when the `uninterrupted` block it
-    arrived in ends."""
+    """A signal handler that raises an exception at once, or when its `uninterrupted` block ends.
+
+    Parameters
+    ----------
+    make : callable
+        ``make(signum)`` returns the exception to raise.
+
+    Returns
+    -------
+    callable
+        A handler for `signal.signal`.
+    """
 
     def handler(signum, frame):
         exc = make(signum)
@@ -59,9 +69,22 @@ def raising(make):
 
 
 def hold_interrupts(hook, held: list):
-    """A sys.unraisablehook that keeps in `held` an interrupt raised where Python cannot pass it
-    on — a callback from C: Numba caches a kernel it compiled through one — to be raised again
-    when the work returns, and hands every other unraisable error to `hook`."""
+    """A `sys.unraisablehook` that keeps the interrupts Python cannot pass on, to raise them later.
+
+    An interrupt raised in a callback from C (Numba caches a kernel it compiled through one) is
+    kept, to be raised again when the work returns.
+
+    Parameters
+    ----------
+    hook : callable
+        The hook every other unraisable error is handed to.
+    held : list
+        Where the interrupts are kept.
+
+    Returns
+    -------
+    callable
+    """
 
     def unraisable(info):
         if isinstance(info.exc_value, KeyboardInterrupt):

@@ -28,7 +28,24 @@ CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 
 
 def map_shape(layout: str, size: int) -> tuple[int, int]:
-    """(height, width) of a map: `size` is the lat-long width or the cube face size."""
+    """The shape of a map.
+
+    Parameters
+    ----------
+    layout : {"latlong", "cube"}
+    size : int
+        A lat-long's width (even, >= 2) or a cube's face size (>= 2).
+
+    Returns
+    -------
+    (height, width) : tuple of 2 ints
+        (size / 2, size) for a lat-long, (6 size, size) for a cube.
+
+    Raises
+    ------
+    ValueError
+        An unknown layout or a bad size.
+    """
     if layout == "latlong":
         if size < 2 or size % 2:
             raise ValueError(f"lat-long width must be an even number >= 2, got {size}")
@@ -41,10 +58,23 @@ def map_shape(layout: str, size: int) -> tuple[int, int]:
 
 
 def latlong_directions(fx: np.ndarray, fy: np.ndarray, width: int, dtype=np.float64) -> np.ndarray:
-    """Directions at continuous lat-long pixel positions (fx, fy); pixel centres at +0.5.
+    """Directions at continuous lat-long pixel positions; pixel centres at +0.5.
 
-    fx, fy broadcast together; returns (..., 3) float64 unit vectors. For a grid, pass fx
-    as a row (1, W) and fy as a column (H, 1): the trigonometry then runs on 1-D arrays.
+    For a grid, pass `fx` as a row (1, W) and `fy` as a column (H, 1): the trigonometry then
+    runs on 1-D arrays.
+
+    Parameters
+    ----------
+    fx, fy : array_like
+        Positions in pixels, x right, y down (row 0 at the top); they broadcast together.
+    width : int
+        The map's width (its height is width / 2).
+    dtype : dtype, optional
+
+    Returns
+    -------
+    (..., 3) ndarray of `dtype`
+        Unit vectors in the camera frame (docs/conventions.md).
     """
     height = width // 2
     lat = -np.pi * (np.asarray(fy, dtype=np.float64) / height - 0.5)
@@ -95,10 +125,23 @@ _FACE_AXES = (
 
 
 def texel_directions(layout: str, size: int, offset=(0.0, 0.0), dtype=np.float64) -> np.ndarray:
-    """Directions through every texel of a map, shifted by `offset` = (dx, dy) texels.
+    """Directions through every texel of a map, shifted by some texels.
 
-    Returns (H, W, 3) float64 for the map shape `map_shape(layout, size)`. Lat-long texel
-    centres are at +0.5; cube texel centres at integer positions (ImfEnvmap).
+    Lat-long texel centres are at +0.5; cube texel centres at integer positions (ImfEnvmap).
+
+    Parameters
+    ----------
+    layout : {"latlong", "cube"}
+    size : int
+        A lat-long's width or a cube's face size.
+    offset : (dx, dy), optional
+        The shift in texels.
+    dtype : dtype, optional
+
+    Returns
+    -------
+    (H, W, 3) ndarray of `dtype`
+        Unit vectors in the camera frame, for the shape `map_shape(layout, size)`.
     """
     height, width = map_shape(layout, size)
     dx, dy = offset

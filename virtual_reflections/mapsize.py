@@ -20,6 +20,19 @@ WIDTHS = (256, 512, 1024, 2048, 4096)  # the lat-long widths an artist can choos
 
 
 def auto_map_width(object_px: float, minimum: int = MIN_WIDTH, maximum: int = MAX_WIDTH) -> int:
-    """The lat-long width for a curved object ``object_px`` pixels across on screen."""
+    """The lat-long width for a curved object of a given size on screen (the module's rule).
+
+    Parameters
+    ----------
+    object_px : float
+        The object's size across on screen, in pixels.
+    minimum, maximum : int, optional
+        The width's bounds.
+
+    Returns
+    -------
+    int
+        A power of two from `minimum` to `maximum`.
+    """
     want = max(float(object_px), 1.0) * math.pi
     return int(min(max(2 ** math.ceil(math.log2(want)), minimum), maximum))
