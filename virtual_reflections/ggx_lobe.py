@@ -91,11 +91,23 @@ def lobe(roughness: float) -> tuple[tuple[float, float], ...]:
 
 @functools.lru_cache(maxsize=64)
 def dominant_shift(roughness: float) -> tuple[float, float, float]:
-    """(a, b, c): the centre of the GGX lobe of ``roughness`` (the mean of its reflected
-    directions, weighted by the radiance they carry) is normalize(R + t (N - R)), R the mirror
-    direction and N the normal, t = x (a + x (b + x c)) with x = 1 - cos(view angle); fitted by
-    least squares on views 4-88 degrees off the normal (deterministic quadrature over the
-    microfacet normals, sampled through the GGX distribution's inverse)."""
+    """The fit of the GGX lobe's centre toward the normal, for one roughness.
+
+    The lobe's centre (the mean of its reflected directions, weighted by the radiance they carry)
+    is normalize(R + t (N - R)), R the mirror direction, N the normal, t = x (a + x (b + x c))
+    and x = 1 - cos(view angle).
+
+    Parameters
+    ----------
+    roughness : float
+        Blender's, 0..1 (alpha = roughness^2).
+
+    Returns
+    -------
+    (a, b, c) : tuple of 3 floats
+        Least squares on views 4-88 degrees off the normal (deterministic quadrature over the
+        microfacet normals, sampled through the GGX distribution's inverse).
+    """
     alpha2 = float(roughness) ** 4
     n = 96
     u = (np.arange(n) + 0.5) / n

@@ -6,6 +6,10 @@ plate coordinates. Every level is stored with a one-pixel border that repeats it
 pixels, so bilinear taps never need clamping: level l's pixel (i, j) is row
 `offsets[l] + (i + 1) * (w + 2) + (j + 1)` of one (P, 3) float32 array, and a lookup table
 can address any pixel of any level with a single index.
+
+A pyramid from level `first` > 0 takes that level straight from the plate when its sides are
+multiples of 2^first, so the finer levels are not written and read again (1080p to level 2
+with OpenCV: 1.9 against 3.4 ms, measured).
 """
 
 from __future__ import annotations
@@ -17,7 +21,20 @@ from .parallel import for_blocks
 
 
 def level_shapes(height: int, width: int, levels: int | None = None) -> list[tuple[int, int]]:
-    """(h, w) of every level (without the border), down to 1 x 1 or `levels` levels."""
+    """The shape of every level of a plate's pyramid (without the border).
+
+    Parameters
+    ----------
+    height, width : int
+        The plate's size in pixels.
+    levels : int, optional
+        How many levels; default down to 1 x 1.
+
+    Returns
+    -------
+    list of (h, w)
+        Level 0 (the plate) first.
+    """
     shapes = [(height, width)]
     while (shapes[-1] != (1, 1)) and (levels is None or len(shapes) < levels):
         h, w = shapes[-1]
@@ -98,17 +115,45 @@ def _fill_border(level: np.ndarray) -> None:
 
 
 def pyramid_size(height: int, width: int, levels: int | None = None, first: int = 0) -> int:
-    """Rows of the flat pyramid of a height x width plate (levels first .. levels - 1)."""
+    """Rows of the flat pyramid of a plate.
+
+    Parameters
+    ----------
+    height, width : int
+        The plate's size in pixels.
+    levels : int, optional
+        Levels `first` .. `levels` - 1 are held; default down to 1 x 1.
+    first : int, optional
+
+    Returns
+    -------
+    int
+    """
     return int(level_offsets(level_shapes(height, width, levels), first)[-1])
 
 
 def build_pyramid(plate: np.ndarray, levels: int | None = None, first: int = 0, out=None):
-    """The flat bordered pyramid of a (H, W, 3) float32 scene-linear plate: (P, 3) float32
-    holding levels `first` .. `levels` - 1, written into `out` when given (shape
-    (pyramid_size(H, W, levels, first), 3)). Finer levels are only computed on the way; when
-    the plate's sides are multiples of 2^first, level `first` comes straight from the plate
-    (the means of 2^first x 2^first blocks, the same to rounding): the finer levels are not
-    written and read again (1080p to level 2 with OpenCV: 1.9 against 3.4 ms, measured)."""
+    """The flat bordered pyramid of a plate.
+
+    Finer levels than `first` are only computed on the way; when the plate's sides are multiples
+    of 2^first, level `first` comes straight from the plate (the means of 2^first x 2^first
+    blocks, the same to rounding), see the module docstring.
+
+    Parameters
+    ----------
+    plate : (H, W, 3) float32 ndarray
+        Scene-linear.
+    levels : int, optional
+        Levels `first` .. `levels` - 1 are held; default down to 1 x 1.
+    first : int, optional
+    out : (pyramid_size(H, W, levels, first), 3) float32 ndarray, optional
+        Written into when given.
+
+    Returns
+    -------
+    (P, 3) float32 ndarray
+        `out` when given.
+    """
     plate = np.asarray(plate, dtype=np.float32)
     h, w = plate.shape[:2]
     shapes = level_shapes(h, w, levels)
@@ -184,7 +229,23 @@ def _blocks(src: np.ndarray, dst: np.ndarray, k: int) -> None:
 
 
 def level_view(flat: np.ndarray, shapes, level: int, first: int = 0) -> np.ndarray:
-    """Level `level` of a flat pyramid as an (h, w, 3) view (without the border)."""
+    """One level of a flat pyramid as an image, without the border.
+
+    Parameters
+    ----------
+    flat : (P, 3) float32 ndarray
+        The pyramid (`build_pyramid`).
+    shapes : list of (h, w)
+        `level_shapes` of the plate.
+    level : int
+    first : int, optional
+        The pyramid's first level.
+
+    Returns
+    -------
+    (h, w, 3) float32 ndarray
+        A view into `flat`.
+    """
     offsets = level_offsets(shapes, first)
     h, w = shapes[level]
     return flat[offsets[level] : offsets[level + 1]].reshape(h + 2, w + 2, 3)[1:-1, 1:-1]

@@ -75,7 +75,21 @@ def _draw_line(img, p, q, colour, width=1, dash=0):
 
 
 def draw_segmentation(plate: np.ndarray, seg: Segmentation, triangles: int = 0) -> np.ndarray:
-    """(H, W, 3) linear plate -> (H, W, 3) linear picture with the regions drawn on it."""
+    """Draw the paper's regions on a plate.
+
+    Parameters
+    ----------
+    plate : (H, W, 3) ndarray
+        Scene-linear.
+    seg : Segmentation
+    triangles : int, optional
+        The front face's n triangles (0: the continuous limit).
+
+    Returns
+    -------
+    (H, W, 3) float32 ndarray
+        Scene-linear, the plate with the regions drawn on it.
+    """
     labels = region_labels(seg)
     img = 0.6 * np.asarray(plate, np.float32) + 0.4 * REGION_COLOURS[labels] * 0.5
     W, H = float(seg.width), float(seg.height)

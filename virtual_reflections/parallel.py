@@ -29,7 +29,12 @@ _local = threading.local()  # .helper: this thread is one of ours
 
 
 def workers() -> int:
-    """Threads to use: the cores this process may run on, at most 8 (VR_THREADS overrides)."""
+    """Threads to use: the cores this process may run on, at most 8 (VR_THREADS overrides).
+
+    Returns
+    -------
+    int
+    """
     env = os.environ.get("VR_THREADS")
     if env and env.isdigit() and int(env) > 0:
         return int(env)
@@ -132,11 +137,26 @@ def _ensure_threads(n: int) -> None:
 
 
 def for_blocks(fn, rows: int, min_rows: int = MIN_ROWS, max_rows: int | None = None) -> None:
-    """Call fn(start, stop) over consecutive blocks covering range(rows), in parallel;
-    each block gets at least `min_rows` rows and, with `max_rows`, at most that many (the
-    blocks then outnumber the threads, which take them in turn: a caller working on large
-    arrays keeps its temporaries small, so they are neither fresh memory nor out of cache).
-    The first error a block raises is raised here, once no block runs."""
+    """Call a function over consecutive blocks of rows, in parallel.
+
+    With `max_rows` the blocks outnumber the threads, which take them in turn: a caller on large
+    arrays keeps its temporaries small (neither fresh memory nor out of cache).
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(start, stop)``, called once per block; the blocks cover range(rows).
+    rows : int
+    min_rows : int, optional
+        The fewest rows a block gets.
+    max_rows : int, optional
+        The most rows a block gets.
+
+    Raises
+    ------
+    Exception
+        The first error a block raised, once no block runs.
+    """
     n = min(workers(), max(1, rows // min_rows))
     count = n if max_rows is None else max(n, -(-rows // max_rows))
     if count == 1:

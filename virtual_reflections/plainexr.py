@@ -27,9 +27,22 @@ DTYPES = {0: np.dtype("<u4"), 1: np.dtype("<f2"), 2: np.dtype("<f4")}
 
 
 def read_channels(path: str) -> dict:
-    """Every channel of an uncompressed EXR by name, every part included: {name: (H, W)
-    float32} over the display window (zero where no data), top row first, values as stored.
-    ImageError (one line) when the file is missing, damaged or compressed."""
+    """Every channel of an uncompressed EXR by name, every part included.
+
+    Parameters
+    ----------
+    path : str
+
+    Returns
+    -------
+    dict of str to (H, W) float32 ndarray
+        Over the display window (zero where no data), top row first, values as stored.
+
+    Raises
+    ------
+    ImageError
+        One line: the file is missing, damaged or compressed.
+    """
     if not os.path.isfile(path):
         raise ImageError(f"image not found: {path}")
     with open(path, "rb") as f:

@@ -36,16 +36,37 @@ IDENTITY_TEXELS = 0.25  # one narrower than this (texels) leaves the map as it i
 
 
 def lobe_sigmas(roughness: float) -> list[tuple[float, float]]:
-    """[(weight, sigma in radians)] of the lobe of a GGX surface of ``roughness``
-    (ggx_lobe.lobe without its Gaussians under MIN_WEIGHT; the weights sum to 1)."""
+    """The Gaussians of the lobe of a GGX surface (`ggx_lobe.lobe` without those under MIN_WEIGHT).
+
+    Parameters
+    ----------
+    roughness : float
+        Blender's, 0..1.
+
+    Returns
+    -------
+    list of (weight, sigma)
+        Sigma in radians; the weights sum to 1.
+    """
     kept = [(w, s) for w, s in lobe(round(float(roughness), 4)) if w >= MIN_WEIGHT]
     total = sum(w for w, _ in kept)
     return [(w / total, s) for w, s in kept]
 
 
 def prefilter_latlong(env: np.ndarray, roughness: float) -> np.ndarray:
-    """``env`` ((H, W, C) lat-long, H = W / 2) convolved with the GGX lobe of ``roughness``
-    (0..1, Blender's): float32 of the same shape. Left unchanged (a copy) at or under SHARP."""
+    """Convolve a lat-long map with the GGX lobe of a roughness.
+
+    Parameters
+    ----------
+    env : (H, W, C) ndarray
+        A lat-long, H = W / 2, scene-linear.
+    roughness : float
+        Blender's, 0..1; at or under SHARP the map is left unchanged (a copy).
+
+    Returns
+    -------
+    (H, W, C) float32 ndarray
+    """
     env = np.asarray(env, np.float32)
     h, w = env.shape[:2]
     if w != 2 * h:

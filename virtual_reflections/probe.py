@@ -35,10 +35,18 @@ MIN_SHARE = 0.01  # share of the plate that must be above it for an exposure com
 
 @dataclass(frozen=True, eq=False)
 class Probe:
-    """An HDRI at infinity: `pixels` (h, w, 3) float32 scene-linear lat-long (Blender's
-    equirectangular layout, top row first; any finite values), `rotation` (3, 3) float64 from
-    the camera frame to the image's frame (a proper rotation); `key`: what the caller made it
-    of, so a change shows in its caches."""
+    """An HDRI at infinity (the module docstring gives its frames).
+
+    Attributes
+    ----------
+    pixels : (h, w, 3) float32 ndarray
+        A scene-linear lat-long in Blender's equirectangular layout, top row first; any
+        finite values.
+    rotation : (3, 3) float64 ndarray
+        A proper rotation from the camera frame to the image's frame.
+    key : object
+        What the caller made it of, so a change shows in its caches.
+    """
 
     pixels: np.ndarray
     rotation: np.ndarray
@@ -68,10 +76,21 @@ class Probe:
 
 
 def shrink_to(pixels: np.ndarray, width: int) -> np.ndarray:
-    """``pixels`` (h, w, 3) no wider than ``width``: the mean of every k x k block, k = w //
-    width rounded up (an image already that narrow is returned as float32). What a map
-    ``width`` wide reads of a larger HDRI (`Probe.latlong` shrinks by whole blocks too), so
-    an 8K HDRI need not be kept whole."""
+    """An image no wider than a width: the mean of every k x k block, k = w // width rounded up.
+
+    What a map `width` wide reads of a larger HDRI (`Probe.latlong` shrinks by whole blocks too),
+    so an 8K HDRI need not be kept whole.
+
+    Parameters
+    ----------
+    pixels : (h, w, 3) ndarray
+    width : int
+
+    Returns
+    -------
+    (h // k, w // k, 3) float32 ndarray
+        `pixels` as float32 when already that narrow.
+    """
     k = -(-pixels.shape[1] // max(int(width), 1))
     return _shrink(pixels, k)
 
@@ -120,18 +139,46 @@ def sample(pixels: np.ndarray, directions: np.ndarray) -> np.ndarray:
 
 
 def with_probe(without: np.ndarray, weight: np.ndarray, probe_map: np.ndarray) -> np.ndarray:
-    """The map `without` (h, w, 3) the prior, plus the probe `probe_map` (h, w, 3) for each
-    texel's prior weight `weight` (h, w)."""
+    """A map with the probe in place of its sky prior.
+
+    Parameters
+    ----------
+    without : (h, w, 3) float32 ndarray
+        The map with the prior black (`envmap.prior_parts`).
+    weight : (h, w) float32 ndarray
+        Each texel's weight of the prior, 0..1.
+    probe_map : (h, w, 3) float32 ndarray
+        The probe in the map's layout.
+
+    Returns
+    -------
+    (h, w, 3) float32 ndarray
+    """
     return without + weight[..., None] * probe_map
 
 
 def exposure_ratio(plate: np.ndarray, intrinsics, up, probe: Probe) -> float | None:
-    """How much brighter the plate is than the probe where both show the surroundings: the
-    median over the plate's pixels at least ABOVE_DEG above the horizon (`up`, camera frame)
-    of their luminance over the probe's along the same direction (a ratio: 1 when the HDRI is
-    exposed as the plate). None when under MIN_SHARE of the plate is above the horizon, or
-    the pixels there are black. A check for the artist, not a correction: the world's
-    strength is theirs to set."""
+    """How much brighter the plate is than the probe where both show the surroundings.
+
+    A check for the artist, not a correction: the world's strength is theirs to set.
+
+    Parameters
+    ----------
+    plate : (H, W, 3) float32 ndarray
+        Scene-linear.
+    intrinsics : (fx, fy, cx, cy)
+        The plate camera in plate pixels.
+    up : (x, y, z)
+        The world's up in the camera frame.
+    probe : Probe
+
+    Returns
+    -------
+    float or None
+        The median, over the plate's pixels at least ABOVE_DEG above the horizon, of their
+        luminance over the probe's along the same direction (1: exposed as the plate); None
+        when under MIN_SHARE of the plate is above the horizon or the pixels there are black.
+    """
     height, width = plate.shape[:2]
     fx, fy, cx, cy = intrinsics
     step = max(1, int(math.sqrt(height * width / 20000)))  # about 20 000 pixels are enough
