@@ -161,15 +161,30 @@ NAMES = {"numba": "compiled (Numba)", "opencv": "OpenCV", "numpy": "NumPy"}
 
 
 def installed() -> list:
-    """The optional back ends whose modules are installed, fastest first, found without
-    importing them (a panel may ask while it draws)."""
+    """The optional back ends whose modules are installed, fastest first.
+
+    Found without importing them, so a panel may ask while it draws.
+
+    Returns
+    -------
+    list of str
+        Of "numba", "opencv".
+    """
     found = importlib.util.find_spec
     return [name for name, module in (("numba", "numba"), ("opencv", "cv2")) if found(module)]
 
 
 def describe() -> str:
-    """The gathers' back end for a panel: the one in use once the engine has chosen, else the
-    fastest installed (found, not imported: importing Numba takes ~0.5 s)."""
+    """The gathers' back end, named for a panel.
+
+    The one in use once the engine has chosen, else the fastest installed (found, not imported:
+    importing Numba takes ~0.5 s).
+
+    Returns
+    -------
+    str
+        A value of NAMES, as "compiled (Numba)".
+    """
     if _kernels or _forced():
         return NAMES[backend()]
     return NAMES[(installed() or ["numpy"])[0]]
