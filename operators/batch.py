@@ -116,9 +116,12 @@ def check_up_front(scene, options):
             raise ValueError(f"{what}: frame {f} is outside Blender's frames {low} to {high}")
     if not options.no_reflections and options.passes != 1:
         combine = options.combine or scene.virtual_reflections.combine
-        interreflect.check_combine(
-            combine, options.passes, options.max_passes or interreflect.R_MAX
-        )
+        try:
+            interreflect.check_combine(
+                combine, options.passes, options.max_passes or interreflect.R_MAX
+            )
+        except ValueError as exc:
+            raise ValueError(f"--passes {options.passes}: {exc} (--combine)") from None
 
 
 def _one_frame_header(scene, options, name, out):

@@ -403,7 +403,7 @@ def test_world_with_passes_is_refused_up_front(shot, tmp_path):
     assert ranged.returncode == 2 and one_line(ranged), ranged.stderr[-2000:]
     single = run(blend, "--plate", plates[0], "--out", out, *opts)
     assert single.returncode == 2 and one_line(single), single.stderr[-2000:]
-    assert ranged.stderr == single.stderr and "World" in ranged.stderr
+    assert ranged.stderr == single.stderr and "World (--combine)" in ranged.stderr
     assert not out.exists()
 
 
