@@ -262,11 +262,13 @@ def ensure_occlusion_group():
     return group
 
 
-def mix_ground(nodes, links, position, direction, colour, ground, location, boxes=()):
+def mix_ground(nodes, links, position, direction, colour, ground, location, boxes=(), sky=None):
     """The map's ``colour`` with the ground of ``ground`` (a GroundLookup) mixed in along the
     ray from ``position`` in ``direction`` (world-space sockets). ``boxes``: (centre, half size)
     of each object whose contact shadow darkens the ground (`occluder`; each a socket or a
-    value, in the space of the object the material is on). Returns the colour socket."""
+    value, in the space of the object the material is on); ``sky``: a float socket, the share
+    of the ground point's sky left (the ground is multiplied by it), or None. Returns the
+    colour socket."""
     x, y = location
     lookup = new_node(nodes, "ShaderNodeGroup", GROUND_GROUP, (x, y))
     lookup.node_tree = ensure_ground_group()
@@ -288,6 +290,8 @@ def mix_ground(nodes, links, position, direction, colour, ground, location, boxe
         user.use_cyclic, user.use_auto_refresh = cyclic, True
     links.new(lookup.outputs["UV"], plate.inputs["Vector"])
     seen = plate.outputs["Color"]
+    if sky is not None:
+        seen = vector_math_node(nodes, links, "SCALE", "Ground Lit", (x + 400, y - 150), seen, sky)
     if boxes:
         strength = new_node(nodes, "ShaderNodeValue", SHADOW_NODE, (x, y - 200))
         strength.outputs[0].default_value = ground.shadow

@@ -13,33 +13,45 @@ the hit point and the ray's length:
 
     origin = Position + Incoming * Ray Length,   direction = -Incoming
 
-Blind to each other, the mirrors render exactly the one-pass look (the dome reproduces the
-material's lookup); seeing each other, Cycles adds every level of inter-reflection up to the
-scene's glossy bounces in one render.
+The ground is a plane at the ground's height with the same lookup (seen by glossy rays only):
+the ground point is its shading point, where Cycles' Ambient Occlusion measures the sky the
+objects' real shapes hide (their contact shadow, times the artist's strength). The material's
+model, an ellipsoid in each object's bounding box, taken here with world-aligned boxes for
+every object at once, turned the ground under and beside a torus nearly black where the real
+ring hides little sky: its own rays meet it after bouncing off the torus itself (issue 41).
+
+Blind to each other, the mirrors render the one-pass look (the dome reproduces the material's
+lookup, the plane its ground with the real shapes' contact shadow); seeing each other, Cycles
+adds every level of inter-reflection up to the scene's glossy bounces in one render.
 
 It applies to Camera View + Ground in the Replace and Modulate looks under Cycles
 (`applies`): Mix shades with the object's own surface (its mirror would need the material's
 Fresnel mix) and the other methods' maps are each object's own (the paper's segmentation), so
 they keep the paper's passes. Everything here is temporary:
-the dome, its material and the mirror materials are made for the render and deleted after it,
-and every slot, visibility flag and bounce count put back (`traced`), also on errors or Esc.
-While it renders, other glossy objects inside the reflective objects' render border see the
-dome where they would see the world, and what the mirrors show is indirect light to Cycles:
-the scene's Clamp Indirect, when set, applies to it (a plate brighter than that shows dimmer
-in the mirrors than in pass 1).
+the dome, the ground plane, their materials and the mirror materials are made for the render
+and deleted after it, and every slot, visibility flag and bounce count put back (`traced`),
+also on errors or Esc. While it renders, other glossy objects inside the reflective objects'
+render border see the dome where they would see the world (and the plane where they would see
+the ground), and what the mirrors show is indirect light to Cycles: the scene's Clamp
+Indirect, when set, applies to it (a plate brighter than that shows dimmer in the mirrors than
+in pass 1).
 """
 
 import contextlib
+import math
 
 import bpy
 from mathutils import Vector
 
 from . import floor, ground_nodes, reflection_nodes, shading
 from .images import CREATED
-from .nodes import new_node, vector_math_node, view_ray
+from .nodes import math_node, new_node, vector_math_node, view_ray
 
 DOME = "VR Traced Dome"
+GROUND_PLANE = "VR Traced Ground"
 MIRROR = "VR Traced Mirror"
+AO_SAMPLES = 16  # Ambient Occlusion rays per shading of the ground plane
+AO_REACH = 8.0  # the contact shadow's reach: this x the largest object's bounding radius
 MIN_RADIUS = 1000.0  # m: the dome's radius at least, and 20 x the farthest object's distance
 MIN_GLOSSY_BOUNCES = 4  # raised to this for the render when the scene has fewer
 LOOKS = ("REPLACE", "MODULATE")  # the map is the whole surface: a mirror of its colour
@@ -112,11 +124,15 @@ def _world_box(obj, origin):
     return centre, tuple((b - a) / 2 for a, b in zip(low, high))
 
 
-def _dome_material(image, ground, boxes):
+def _dome_material(image, ground, boxes, occlusion=None, name=DOME):
     """Emission of the default's lookup along each ray that meets the dome, from its origin.
-    ``boxes``: (centre, half size) of every reflective object in the dome's space."""
-    material = bpy.data.materials.new(DOME)
-    material[CREATED] = "traced dome"
+    ``boxes``: (centre, half size) of every reflective object in the dome's space, whose
+    ellipsoids darken the ground (the material's model); or, with ``occlusion`` (metres), the
+    ground darkened by the share of its sky the scene's real surfaces hide within that
+    distance (Cycles' Ambient Occlusion at the shading point: the material of the ground
+    plane, whose shading point is the ground point)."""
+    material = bpy.data.materials.new(name)
+    material[CREATED] = "traced dome" if name == DOME else "traced ground"
     if material.node_tree is None:  # 4.x; 5.x materials always have their tree
         material.use_nodes = True
     if hasattr(material, "cycles") and hasattr(material.cycles, "emission_sampling"):
@@ -134,14 +150,41 @@ def _dome_material(image, ground, boxes):
     )
     direction = view.outputs["Vector"]
     colour = reflection_nodes.env_lookup(nodes, links, direction, image, (-300, 300))
+    sky = None
+    if occlusion is not None:
+        sky = _sky_left(nodes, links, occlusion, ground.shadow)
+        boxes = ()
     total = ground_nodes.mix_ground(
-        nodes, links, origin, direction, colour, ground, (0, 600), boxes
+        nodes, links, origin, direction, colour, ground, (0, 600), boxes, sky
     )
     emission = new_node(nodes, "ShaderNodeEmission", "Dome Emission", (800, 300))
     links.new(total, emission.inputs["Color"])
     output = new_node(nodes, "ShaderNodeOutputMaterial", "Output", (1000, 300))
     links.new(emission.outputs["Emission"], output.inputs["Surface"])
     return material
+
+
+def _sky_left(nodes, links, distance, strength):
+    """1 - k (1 - AO): the share of the shading point's sky the surfaces within ``distance``
+    leave (Cycles' Ambient Occlusion, cosine weighted: an exact sphere's form factor as the
+    material's model, but of the real shapes: a torus's hole lets the sky through), the
+    hidden share times the contact shadow's strength k."""
+    ao = new_node(nodes, "ShaderNodeAmbientOcclusion", "Contact Shadow (AO)", (-300, 900))
+    ao.samples = AO_SAMPLES
+    ao.inputs["Distance"].default_value = distance
+    hidden = math_node(nodes, links, "SUBTRACT", "Sky Hidden", (-100, 900), 1.0, ao.outputs["AO"])
+    hidden = math_node(nodes, links, "MULTIPLY", "Hidden x Strength", (50, 900), hidden, strength)
+    return math_node(nodes, links, "SUBTRACT", "Sky Left", (200, 900), 1.0, hidden)
+
+
+def _plane_mesh(half, height):
+    """A square mesh of half size ``half`` at Z = ``height`` about the origin, facing up."""
+    mesh = bpy.data.meshes.new(GROUND_PLANE)
+    corners = [(-half, -half, height), (half, -half, height), (half, half, height),
+               (-half, half, height)]  # fmt: skip
+    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
+    mesh.update()
+    return mesh
 
 
 def _sphere_mesh(radius):
@@ -209,6 +252,8 @@ def traced(scene, objects):
     far = max(
         (obj.matrix_world @ Vector(c) - centre).length for obj in objects for c in obj.bound_box
     )
+    # before the plane below is made, which would be the floor under the objects
+    ground_object = floor.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
     made = []  # datablocks to delete, last made first
     slots = []  # (slot, material) to put back
     flags = []  # (owner, attribute, value) to put back
@@ -224,6 +269,22 @@ def traced(scene, objects):
         scene.collection.objects.link(dome)
         for attr in DOME_HIDDEN_FROM:
             setattr(dome, attr, False)
+        # The ground, as a plane the mirrors' rays meet (seen by glossy rays only): its shading
+        # point is the ground point, where Cycles measures the sky the objects really hide.
+        reach = max(math.sqrt(sum(h * h for h in _world_box(o, centre)[1])) for o in objects)
+        plane_material = _dome_material(
+            image, ground, (), occlusion=AO_REACH * reach, name=GROUND_PLANE
+        )
+        made.append(plane_material)
+        plane_mesh = _plane_mesh(max(MIN_RADIUS, 20.0 * far), ground.height)
+        made.append(plane_mesh)
+        plane_mesh.materials.append(plane_material)
+        plane = bpy.data.objects.new(GROUND_PLANE, plane_mesh)
+        made.append(plane)
+        plane.location = (centre.x, centre.y, 0.0)
+        scene.collection.objects.link(plane)
+        for attr in DOME_HIDDEN_FROM:
+            setattr(plane, attr, False)
         mirrors = {}  # each material copy of the objects -> its mirror
         for obj in objects:
             for slot in obj.material_slots:
@@ -234,7 +295,6 @@ def traced(scene, objects):
                     made.append(mirrors[slot.material.name])
                 slots.append((slot, slot.material))
                 slot.material = mirrors[slot.material.name]
-        ground_object = floor.ground_of(scene, bpy.context.evaluated_depsgraph_get(), objects)
         ours = set(objects)
         for obj in scene.objects:
             hides_ground = obj == ground_object or getattr(obj, "is_shadow_catcher", False)

@@ -472,7 +472,7 @@ def ground_scene(glossy_bounces=None):
 
 
 def traced_leftovers():
-    names = ("VR Traced Dome", "VR Traced Mirror")
+    names = ("VR Traced Dome", "VR Traced Ground", "VR Traced Mirror")
     return [
         block.name
         for blocks in (bpy.data.objects, bpy.data.meshes, bpy.data.materials)
@@ -599,4 +599,35 @@ def test_the_traced_pass_shows_a_red_neighbour_in_the_modulate_look(interreflect
         return float((image[facing][:, 0] - image[facing][:, 1]).mean())
 
     assert redness(composite) > redness(first) + 0.05
+    assert traced_leftovers() == []
+
+
+def test_the_traced_pass_never_darkens_a_torus_and_its_ground_below_pass_one(interreflect):
+    # Issue 41, item 6: a thin torus standing on its rim beside a sphere, the camera looking
+    # down. Its rays meet the torus itself and the ground near its contact, which the dome
+    # darkened by the ellipsoid in the torus's (world) bounding box, nearly black where the
+    # real ring hides little sky; the ground is now a plane whose shading point measures the
+    # sky the real shapes hide (Ambient Occlusion): no mirror pixel is far darker than pass 1.
+    scene = make_scene("REPLACE")
+    scene.virtual_reflections.method = "GROUND"
+    scene.camera.location = (0.0, -5.0, 0.6 + 5.0 * math.tan(math.radians(20)))
+    scene.camera.rotation_euler = (math.radians(70), 0.0, 0.0)
+    plate_image(colourful_plate())
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        radius=0.5, segments=32, ring_count=16, location=(-0.75, 0, 0.5)
+    )
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    bpy.ops.mesh.primitive_torus_add(
+        major_radius=0.5, minor_radius=0.1, major_segments=48, minor_segments=16,
+        location=(0.6, 0.0, 0.6), rotation=(math.pi / 2, 0.0, math.radians(45)),
+    )  # fmt: skip
+    torus = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    first, rgba, _ = run(interreflect, [sphere, torus], 1)
+    composite, _, reports = run(interreflect, [sphere, torus], "auto")
+    assert len(reports) == 2 and reports[1].maps_seconds == 0.0  # traced
+    mirrors = rgba[..., 3] > 0.5
+    ratio = composite.mean(-1)[mirrors] / np.maximum(first.mean(-1)[mirrors], 1e-3)
+    assert ratio.min() > 0.3, ratio.min()  # before: 0.11 (the ground near the contact)
     assert traced_leftovers() == []
