@@ -78,7 +78,15 @@ def decode_uint(pixels: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Cleaned:
-    """A plate made safe to use: (H, W, 3) float32 scene-linear, and what was replaced."""
+    """A plate made safe to use (`clean_plate`).
+
+    Attributes
+    ----------
+    pixels : (H, W, 3) float32 ndarray
+        Scene-linear Rec.709.
+    nonfinite : int
+        How many values were NaN or +-Inf (replaced by 0 or the largest finite).
+    """
 
     pixels: np.ndarray
     nonfinite: int  # how many values were NaN or +-Inf (replaced by 0 or the largest finite)

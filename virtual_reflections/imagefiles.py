@@ -97,11 +97,20 @@ class Plate:
 class PlateHeader:
     """What a plate file's header says, without reading its pixels.
 
-    width, height: the display window (the picture's frame: what the plate is);
-    data: (x, y, width, height) of the pixels stored, relative to the display window;
-    channels: the channel names; integer: 8/16-bit (sRGB-encoded) rather than half/float;
-    colour: the indices of the channels read as R, G, B (`colour_channels`), or None for the
-    first channels (grey or unnamed)."""
+    Attributes
+    ----------
+    width, height : int
+        The display window: the picture's frame, what the plate is.
+    data : (x, y, width, height)
+        The pixels stored, relative to the display window.
+    channels : tuple of str
+        The channel names.
+    integer : bool
+        8/16-bit (sRGB-encoded) rather than half/float.
+    colour : tuple of 3 ints or None
+        The indices of the channels read as R, G, B (`colour_channels`); None: the first
+        channels (grey or unnamed).
+    """
 
     width: int
     height: int
