@@ -15,6 +15,7 @@ asks for it first (each only when it imports).
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 import sys
@@ -113,22 +114,33 @@ def cache_folder() -> str:
     return os.path.join(base, "virtual-reflections", "numba")
 
 
-_preferred = []  # the back end a caller prefers when VR_GATHER names none (`prefer`)
+_preferred = []  # the back end a caller prefers when VR_GATHER names none (`preferring`)
 
 
-def prefer(name: str) -> None:
-    """Use back end `name` ('numba', 'opencv' or 'numpy') when VR_GATHER names none.
+@contextlib.contextmanager
+def preferring(name: str):
+    """Use back end `name` when VR_GATHER names none, while the block runs.
 
-    The engine's command line makes one map per process and prefers NumPy: importing Numba
-    and loading its kernels costs more than they save on one map (1.4-3.6 times slower per
-    call, benchmarks/cli_backend_bench.py); a process making many maps keeps the default."""
+    The engine's command line makes one map per call and prefers NumPy: importing Numba and
+    loading its kernels costs more than they save on one map (1.4-3.6 times slower per call,
+    benchmarks/cli_backend_bench.py); a process making many maps keeps the default.
+
+    Parameters
+    ----------
+    name : str
+        'numba', 'opencv' or 'numpy'.
+    """
     if name not in NAMES:
         raise ValueError(f"back end must be one of {', '.join(NAMES)}, got {name!r}")
-    _preferred[:] = [name]
+    _preferred.append(name)
+    try:
+        yield
+    finally:
+        _preferred.pop()
 
 
 def _forced() -> str:
-    return os.environ.get("VR_GATHER", "").strip().lower() or "".join(_preferred)
+    return os.environ.get("VR_GATHER", "").strip().lower() or (_preferred[-1] if _preferred else "")
 
 
 def backend() -> str:

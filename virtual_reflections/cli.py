@@ -286,11 +286,11 @@ def main(argv=None) -> int:
     sys.unraisablehook = hold_interrupts(hook, held)
     try:
         args = build_parser().parse_args(_numbers_after_bbox(argv))
-        backends.prefer("numpy")  # one map per process: NumPy is faster than loading Numba
-        if args.command == "envmap":
-            run_envmap(args)
-        else:
-            run_segment(args)
+        with backends.preferring("numpy"):  # one map a call: faster than loading Numba
+            if args.command == "envmap":
+                run_envmap(args)
+            else:
+                run_segment(args)
         if held:  # an interrupt that landed in a callback from C
             raise held[-1]
     except (UsageError, ImageError) as exc:

@@ -213,3 +213,17 @@ def test_a_one_shot_map_runs_on_numpy_without_loading_numba(tmp_path):
                            capture_output=True, text=True, timeout=300)
         assert r.returncode == 0, r.stderr
         assert r.stdout.split()[-1] == loaded, (gather, r.stdout)
+
+
+def test_the_command_lines_preference_ends_with_the_call(tmp_path):
+    """Called in a process that goes on (a test, a script): the NumPy preference is the
+    call's own; the process's back end afterwards is what it was."""
+    from virtual_reflections import backends, cli
+    from virtual_reflections.imagefiles import write_rgba
+
+    plate = tmp_path / "plate.png"
+    write_rgba(str(plate), np.full((24, 32, 4), 0.5, np.float32))
+    before = backends.backend()
+    args = ["envmap", str(plate), "-o", str(tmp_path / "m.exr"), "--bbox", "8", "6", "20", "18"]
+    assert cli.main([*args, "--hfov", "50", "--width", "64"]) == 0
+    assert backends.backend() == before
