@@ -283,13 +283,14 @@ def run_scenes(
 
 
 def table(data) -> str:
-    """Per scene and on average: the default method's and the plate mean's mirror PSNR / SSIM,
-    and how many scenes the default is ahead in."""
+    """Per scene and on average: the default method's and the plate mean's mirror PSNR / SSIM
+    / FLIP, the default's detail ratio on the upper half, how many scenes the default is ahead
+    in and its worst scene."""
     label = data["addon_methods"][0]
     rows = [
         f"| scene | HDRI | {label} PSNR | plate mean PSNR | difference | {label} SSIM | "
-        "plate mean SSIM |",
-        "|---|---|---|---|---|---|---|",
+        f"plate mean SSIM | {label} FLIP | plate mean FLIP | {label} upper-half detail |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     dp, ds = [], []
     for record in data["scenes"]:
@@ -299,22 +300,29 @@ def table(data) -> str:
         ds.append(a["ssim"] - m["ssim"])
         rows.append(
             f"| {record['scene']['name']} | {record['scene']['hdri']} | {a['psnr']:.2f} | "
-            f"{m['psnr']:.2f} | {dp[-1]:+.2f} | {a['ssim']:.3f} | {m['ssim']:.3f} |"
+            f"{m['psnr']:.2f} | {dp[-1]:+.2f} | {a['ssim']:.3f} | {m['ssim']:.3f} | "
+            f"{a.get('flip', math.nan):.3f} | {m.get('flip', math.nan):.3f} | "
+            f"{a.get('detail_upper', math.nan):.2f} |"
         )
 
+    def values(key, name):
+        return [s["results"][MIRROR][name].get(key, math.nan) for s in data["scenes"]]
+
     def mean(key, name):
-        return float(np.mean([s["results"][MIRROR][name][key] for s in data["scenes"]]))
+        return float(np.nanmean(values(key, name)))
 
     n = len(data["scenes"])
     rows.append(
         f"| mean | | {mean('psnr', label):.2f} | {mean('psnr', run.MEAN):.2f} | "
-        f"{np.mean(dp):+.2f} | {mean('ssim', label):.3f} | {mean('ssim', run.MEAN):.3f} |"
+        f"{np.mean(dp):+.2f} | {mean('ssim', label):.3f} | {mean('ssim', run.MEAN):.3f} | "
+        f"{mean('flip', label):.3f} | {mean('flip', run.MEAN):.3f} | "
+        f"{float(np.nanmedian(values('detail_upper', label))):.2f} (median) |"
     )
     spread = f" (standard error {np.std(dp, ddof=1) / math.sqrt(n):.2f})" if n > 1 else ""
     rows.append(
         f"\nahead of the plate mean: PSNR in {sum(d > 0 for d in dp)}/{n}, SSIM in "
         f"{sum(d > 0 for d in ds)}/{n}; mean difference {np.mean(dp):+.2f} dB{spread}, "
-        f"{np.mean(ds):+.3f} SSIM"
+        f"{np.mean(ds):+.3f} SSIM; worst scene {min(dp):+.2f} dB"
     )
     return "\n".join(rows)
 

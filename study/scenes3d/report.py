@@ -23,15 +23,24 @@ def _finite_mean(values):
     return float(np.mean(values)) if values else float("nan")
 
 
+def _finite_median(values):
+    values = [v for v in values if math.isfinite(v)]
+    return float(np.median(values)) if values else float("nan")
+
+
 def summary(data) -> dict:
-    """{material: {method: {metric: mean, "wins_psnr": n, "wins_ssim": n}}} and Generate times."""
+    """{material: {method: {metric: mean, "wins_psnr": n, "wins_ssim": n, "detail_median",
+    "detail_upper_median"}}} and Generate times. A metric a record lacks (one scored before it
+    was added) counts as NaN, which the means leave out."""
     records = data["scenes"]
     out = {}
     for material, _, _ in MATERIALS:
         out[material] = {}
         for method in method_order(data):
             rows = [r["results"][material][method] for r in records]
-            means = {m: _finite_mean([row[m] for row in rows]) for m in METRICS}
+            means = {m: _finite_mean([row.get(m, math.nan) for row in rows]) for m in METRICS}
+            for m in ("detail", "detail_upper"):
+                means[f"{m}_median"] = _finite_median([row.get(m, math.nan) for row in rows])
             base = [r["results"][material][MEAN] for r in records]
             means["wins_psnr"] = sum(a["psnr"] > b["psnr"] for a, b in zip(rows, base))
             means["wins_ssim"] = sum(a["ssim"] > b["ssim"] for a, b in zip(rows, base))
@@ -53,9 +62,9 @@ def table_means(data) -> str:
     s = summary(data)
     n = s["scenes"]
     lines = [
-        "| method | material | PSNR (dB) | SSIM | si-RMSE | beats plate mean (PSNR / SSIM) "
-        "| Generate (ms, median) |",
-        "|---|---|---|---|---|---|---|",
+        "| method | material | PSNR (dB) | SSIM | si-RMSE | FLIP | detail: all / upper (median) "
+        "| beats plate mean (PSNR / SSIM) | Generate (ms, median) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for method in method_order(data):
         for material, _, combine in MATERIALS:
@@ -64,7 +73,8 @@ def table_means(data) -> str:
             wins = "–" if method == MEAN else f"{row['wins_psnr']}/{n} / {row['wins_ssim']}/{n}"
             lines.append(
                 f"| {method} | {material} | {_fmt(row['psnr'])} | {_fmt(row['ssim'], 3)} "
-                f"| {_fmt(row['si_rmse'], 3)} | {wins} | "
+                f"| {_fmt(row['si_rmse'], 3)} | {_fmt(row['flip'], 3)} "
+                f"| {_fmt(row['detail_median'])} / {_fmt(row['detail_upper_median'])} | {wins} | "
                 f"{'–' if t is None else f'{1000 * t:.0f} ({combine.lower()})'} |"
             )
     return "\n".join(lines) + "\n"
@@ -148,41 +158,55 @@ def _plt():
     return plt
 
 
+PARETO_METRICS = (  # (metric, axis label): the panels of chart_pareto
+    ("psnr", "mirror subject: mean PSNR (dB)"),
+    ("flip", "mirror subject: mean FLIP (lower is better)"),
+)
+
+
 def chart_pareto(data, path) -> None:
-    """Mean mirror PSNR against Generate time (median, Replace) per add-on method; the
-    baselines (no Generate) as horizontal lines."""
+    """Mean mirror PSNR, and mean FLIP, against Generate time (median, Replace) per add-on
+    method; the baselines (no Generate) as horizontal lines. A metric no record holds (a run
+    before it was added) gets no panel."""
     plt = _plt()
     s = summary(data)
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    mirror = s["materials"]["mirror"]
+    panels = [
+        (m, label)
+        for m, label in PARETO_METRICS
+        if any(math.isfinite(mirror[method].get(m, math.nan)) for method in mirror)
+    ]
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.0), squeeze=False)
     times = [1000 * s["generate_s"][m]["REPLACE"] for m in data["addon_methods"]]
     right = 1.3 * max(times, default=1.0)
-    for method, t in zip(data["addon_methods"], times):
-        p = s["materials"]["mirror"][method]["psnr"]
-        ax.plot([t], [p], "o", ms=8)
-        left = t > 0.5 * right  # a label that would run off the chart goes to the point's left
-        ax.annotate(
-            method,
-            (t, p),
-            textcoords="offset points",
-            xytext=(-6 if left else 6, 4),
-            ha="right" if left else "left",
-        )
     styles = {PROBE: ":", "Plate stretched": "-.", MEAN: "--"}
-    for baseline in BASELINES:
-        ax.axhline(
-            s["materials"]["mirror"][baseline]["psnr"],
-            ls=styles.get(baseline, "--"),
-            color="grey",
-            label=f"{baseline} (no Generate)",
-        )
-    ax.set_xlim(0, right)
-    low, high = ax.get_ylim()
-    ax.set_ylim(low, high + 0.08 * (high - low))  # room for the top point's label
-    ax.set_xlabel("Generate time, one object, mirror (ms, median over scenes)")
-    ax.set_ylabel("mirror subject: mean PSNR (dB)")
-    ax.set_title(f"3D scenes ({s['scenes']}): accuracy against time")
-    ax.legend(fontsize=8, loc="lower right")  # the points rise to the upper right
-    ax.grid(alpha=0.3)
+    for ax, (metric, label) in zip(axes[0], panels):
+        for method, t in zip(data["addon_methods"], times):
+            p = mirror[method][metric]
+            ax.plot([t], [p], "o", ms=8)
+            left = t > 0.5 * right  # a label that would run off the chart goes to the left
+            ax.annotate(
+                method,
+                (t, p),
+                textcoords="offset points",
+                xytext=(-6 if left else 6, 4),
+                ha="right" if left else "left",
+            )
+        for baseline in BASELINES:
+            ax.axhline(
+                mirror[baseline][metric],
+                ls=styles.get(baseline, "--"),
+                color="grey",
+                label=f"{baseline} (no Generate)",
+            )
+        ax.set_xlim(0, right)
+        low, high = ax.get_ylim()
+        ax.set_ylim(low, high + 0.08 * (high - low))  # room for the top point's label
+        ax.set_xlabel("Generate time, one object, mirror (ms, median over scenes)")
+        ax.set_ylabel(label)
+        ax.set_title(f"3D scenes ({s['scenes']}): accuracy against time")
+        ax.legend(fontsize=8, loc="lower right" if metric == "psnr" else "upper right")
+        ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -370,7 +394,8 @@ def inter_summary(data) -> dict:
     for method in data["addon_methods"]:
         rows = [r["passes"][method] for r in data["scenes"]]
         entry = {
-            run: {m: _finite_mean([row[run][m] for row in rows]) for m in METRICS} for run in RUNS
+            run: {m: _finite_mean([row[run].get(m, math.nan) for row in rows]) for m in METRICS}
+            for run in RUNS
         }
         for run in RUNS:
             entry[run + " inter"] = _finite_mean(
@@ -382,6 +407,7 @@ def inter_summary(data) -> dict:
         )
         entry["gain_ssim"] = entry[AUTO]["ssim"] - entry[ONE]["ssim"]
         entry["better"] = sum(row[AUTO]["psnr"] > row[ONE]["psnr"] for row in rows)
+        entry["worst_psnr"] = min(row[AUTO]["psnr"] - row[ONE]["psnr"] for row in rows)
         entry["passes"] = [row[AUTO]["passes"] for row in rows]
         out[method] = entry
     return out
@@ -441,8 +467,9 @@ def table_inter(data) -> str:
         "",
         "| method (mean of the cases) | one pass | auto, maps as built | auto |"
         " auto − one pass | at most (inter px exact) | auto above one pass (PSNR) |"
-        " inter px PSNR: one / as built / auto | r per case |",
-        "|---|---|---|---|---|---|---|---|---|",
+        " inter px PSNR: one / as built / auto | worst case: auto − one pass |"
+        " FLIP: one / auto | r per case |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method in methods:
         e = s[method]
@@ -451,7 +478,9 @@ def table_inter(data) -> str:
             f"{e['gain_psnr']:+.2f} dB / {e['gain_ssim']:+.3f} | {_signed(e['ceiling_psnr'])} | "
             f"{e['better']}/{n} | "
             f"{_fmt(e[ONE + ' inter'])} / {_fmt(e[PLAIN + ' inter'])} / "
-            f"{_fmt(e[AUTO + ' inter'])} | {', '.join(map(str, e['passes']))} |"
+            f"{_fmt(e[AUTO + ' inter'])} | {e['worst_psnr']:+.2f} dB | "
+            f"{_fmt(e[ONE]['flip'], 3)} / {_fmt(e[AUTO]['flip'], 3)} | "
+            f"{', '.join(map(str, e['passes']))} |"
         )
     return "\n".join(lines) + "\n"
 

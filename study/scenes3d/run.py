@@ -28,6 +28,7 @@ from virtual_reflections.imagefiles import read_rgba
 
 from .. import polyhaven
 from ..evaluate.metrics import psnr, si_rmse, ssim, to_display
+from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
 from ..sky_prior import KINDS
 from . import build
 from .scenes import Scene3D
@@ -48,7 +49,9 @@ MATERIALS = (
 MIX_IOR, MIX_STRENGTH = 4.0, 3.0
 PROBE, STRETCHED, MEAN = "On-set probe", "Plate stretched", "Plate mean"
 BASELINES = (PROBE, STRETCHED, MEAN)
-METRICS = ("psnr", "ssim", "si_rmse")
+# the issue-41 metrics: LDR-FLIP (lower is better) and the detail ratio, the subject's and its
+# upper half's (study/evaluate/perceptual.py)
+METRICS = ("psnr", "ssim", "si_rmse", "flip", "detail", "detail_upper")
 GROUND_CHOSEN = "Camera View + Ground (ground chosen)"
 NAMED = "Camera View + Ground (surroundings named)"  # the artist's: surroundings_of
 WORLD_HDRI = "Camera View + Ground (world HDRI)"  # Surroundings: World HDRI, the dome as world
@@ -133,6 +136,9 @@ def score(pred_linear, truth_linear, mask, crop) -> dict:
         "psnr": psnr(pd, td, m),
         "ssim": ssim(pd, td, m),
         "si_rmse": si_rmse(np.clip(p, 0, 1), np.clip(t, 0, 1), m),
+        "flip": flip_ldr(pd, td, m),
+        "detail": detail_ratio(pd, td, m),
+        "detail_upper": detail_ratio(pd, td, m, upper_half(m)),
     }
 
 

@@ -180,6 +180,7 @@ def test_the_outputs_hold_every_method_and_metric(quick_run):
     saved = json.loads((out / "scenes3d_quick.json").read_text())
     methods = [*method_labels(), "On-set probe", "Plate stretched", "Plate mean"]
     assert len(saved["scenes"]) == len(QUICK.specs())
+    assert {"psnr", "ssim", "si_rmse", "flip", "detail", "detail_upper"} <= set(saved["metrics"])
     for record in saved["scenes"]:
         assert set(record["results"]) == {
             "mirror",
@@ -190,7 +191,7 @@ def test_the_outputs_hold_every_method_and_metric(quick_run):
         }
         for scores in record["results"].values():
             for method in methods:
-                assert set(scores[method]) == {"psnr", "ssim", "si_rmse"}
+                assert set(scores[method]) == set(saved["metrics"])
         assert set(record["generate_s"]) == set(method_labels())
         assert {"hdri", "shape", "lens_mm", "distance", "size"} <= set(record["scene"])
     text = (out / "scenes3d_quick.md").read_text()
