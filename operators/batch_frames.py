@@ -28,6 +28,7 @@ from ..virtual_reflections.atomic_files import (
 from ..virtual_reflections.composite import over, resize_nearest
 from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
 from ..virtual_reflections.imagefiles import check_complete, write_rgba
+from ..virtual_reflections.movies import frames_text, whole_frames
 from . import batch_record, compositor, generate, interreflect, plate, sequence
 from .batch_lock import OutputLock
 from .batch_options import BatchOptions
@@ -73,6 +74,7 @@ class PlateSource:
         else:
             self.kind = "still"
         self.image = None
+        self._whole = None  # a movie's whole frames: ((path, inode, size, time), count)
 
     def file(self, frame):
         if self.kind == "sequence":
@@ -110,13 +112,37 @@ class PlateSource:
             check_plate_file(path)
             check_complete(path, "plate")
         if self.kind == "movie":
+            self.check_movie(path, frames)
+
+    def check_movie(self, path, frames):
+        """ValueError (one line: the movie, the frames it has, the frames asked) for frames
+        the movie does not hold whole: beyond the count its header says, or beyond the frames
+        whose bytes are in the file (a movie cut short: Blender would show its last whole
+        frame for each of them, `movies.whole_frames`)."""
+        with held_stderr():  # Blender's own lines on a movie it cannot open
             image = self.load(frames[0])
-            count = image.frame_duration
-            outside = [f for f in frames if not 1 <= f <= count]
-            if outside:
-                raise ValueError(
-                    f"plate frame {outside[0]} is missing: the movie {path} has frames 1-{count}"
-                )
+            readable = image.size[0] > 0 and image.size[1] > 0
+        count = image.frame_duration if readable else 0
+        whole = self.whole_frames(path)
+        have = count if whole is None else min(count, whole)
+        outside = [f for f in frames if not 1 <= f <= have]
+        if not outside:
+            return
+        asked = f"plate frame{'s' if len(outside) > 1 else ''} {frames_text(outside)}"
+        if have == 0:
+            raise ValueError(
+                f"{asked}: the movie {path} has no whole frame (damaged or cut short?)"
+            )
+        cut = f" whole (its header says {count}: cut short?)" if have < count else ""
+        raise ValueError(f"{asked}: not in the movie {path}, which has frames 1-{have}{cut}")
+
+    def whole_frames(self, path):
+        """`movies.whole_frames` of ``path``, counted again only when the file changed."""
+        st = os.stat(path)
+        key = (path, st.st_ino, st.st_size, st.st_mtime_ns)
+        if self._whole is None or self._whole[0] != key:
+            self._whole = (key, whole_frames(path))
+        return self._whole[1]
 
     def load(self, frame):
         """The Blender image of the scene's plate, showing ``frame``'s plate: one datablock
@@ -485,8 +511,12 @@ class FrameJob:
         plate_file = source.file(frame)
         if source.kind != "movie":  # Blender would render a truncated file's rest grey
             check_complete(plate_file, "plate")
-        image = source.load(frame)
-        pixels, info = plate.pixels(scene, image)
+            image = source.load(frame)
+            pixels, info = plate.pixels(scene, image)
+        else:  # a frame the movie has lost since the run began fails, as a damaged file does
+            source.check_movie(plate_file, [frame])
+            with held_stderr():
+                pixels, info = plate.pixels(scene, source.load(frame))
         timed("plate", t)
         entry = {"frame": frame, "status": "rendered", "plate": plate_file}
         changes = {}

@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-from sequence_shots import build_scene, write_plates
+from sequence_shots import build_scene, write_movie, write_plates
 from shots import addon_part
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -576,3 +576,66 @@ def test_deep_exr_plate_is_refused(shot, tmp_path):
     assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
     assert "deep image" in r.stderr and "--flatten" in r.stderr, r.stderr
     assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+# 23: a movie cut short is refused up front for the frames it no longer holds (Blender showed
+# its last whole frame for every frame after it, exit 0, complete).
+def test_a_movie_cut_short_is_refused_for_the_frames_it_lost(clean_file, tmp_path):
+    colours = [((i + 1) / 10, 1 - (i + 1) / 10, (i % 3) / 2) for i in range(10)]
+    movie = write_movie(tmp_path, write_plates(tmp_path, colours=colours))
+    assert movie is not None, "this Blender cannot write movies"
+    data = movie.read_bytes()
+    movie.write_bytes(data[: len(data) // 2])  # frames 1-4 whole, the header still says 10
+    build_scene()
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "out"
+    r = run(blend, "--plate", movie, "--out", out, "--frames", "1-10", *SMALL)
+    assert r.returncode == 2 and one_line(r), r.stderr[-2000:]
+    assert str(movie) in r.stderr and "frames 5-10" in r.stderr, r.stderr
+    assert "has frames 1-4 whole" in r.stderr and "10" in r.stderr, r.stderr
+    assert not out.exists() or not [p for p in out.iterdir() if not p.name.startswith(".")]
+    # The frames it holds render.
+    r = run(blend, "--plate", movie, "--out", out, "--frames", "3-4", *SMALL)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads((out / "shot.report.json").read_text())["complete"]
+
+
+# 23: a movie frame that cannot be read once the run has started fails that frame (exit 1,
+# the report says failed) instead of showing another frame.
+def test_a_movie_frame_lost_during_the_run_fails_that_frame(clean_file, tmp_path):
+    movie = write_movie(tmp_path, write_plates(tmp_path))
+    assert movie is not None, "this Blender cannot write movies"
+    build_scene()
+    blend = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "out"
+    cut = tmp_path / "cut.mkv"
+    script = (
+        "import os, sys, bpy\n"
+        f"sys.path.insert(0, {str(ROOT)!r})\n"
+        "import render_shot\n"
+        "@bpy.app.handlers.persistent\n"
+        "def cut(scene, *_):\n"
+        "    if scene.frame_current == 1:  # after frame 1: a copy cut short replaces it\n"
+        f"        data = open({str(movie)!r}, 'rb').read()\n"
+        f"        open({str(cut)!r}, 'wb').write(data[: len(data) * 3 // 4])\n"
+        f"        os.replace({str(cut)!r}, {str(movie)!r})\n"
+        "bpy.app.handlers.render_post.append(cut)\n"
+        "code = render_shot.main(sys.argv[1:])\n"
+        "bpy.app.handlers.render_post.remove(cut)  # the bpy module hangs at exit with it\n"
+        "sys.exit(code)\n"
+    )
+    args = (blend, "--plate", movie, "--out", out, "--frames", "1-3", *SMALL)
+    r = subprocess.run(
+        [sys.executable, "-c", script, *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 1 and one_line(r), r.stderr[-2000:]
+    assert "frame 3" in r.stderr and str(movie) in r.stderr, r.stderr
+    report = json.loads((out / "shot.report.json").read_text())
+    assert not report["complete"]
+    assert [e["status"] for e in report["frames"]] == ["rendered", "rendered", "failed"]
