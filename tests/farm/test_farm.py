@@ -469,10 +469,14 @@ def test_farm_bad_plate_is_one_clear_line(cluster, shot, tmp_path):
 
 def find_blender():
     """(command, why): a Blender binary the way tests/e2e finds one, or None and the reason."""
-    path = ROOT / "tests/e2e/conftest.py"
-    spec = importlib.util.spec_from_file_location("vr_e2e_conftest", path)
+    folder = ROOT / "tests/e2e"
+    spec = importlib.util.spec_from_file_location("vr_e2e_conftest", folder / "conftest.py")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, str(folder))  # its own helpers (gl_libraries) beside it
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(folder))
     return module.find_blender()
 
 
