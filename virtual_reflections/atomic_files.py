@@ -197,8 +197,8 @@ def _start_keeper(stderr_fd):
     """(process, data write end, control write end) of a keeper replaying on ``stderr_fd``;
     None where none can start (no Python executable, e.g. a Blender without one)."""
     exe = sys.executable or ""
-    if not os.path.basename(exe).lower().startswith("python"):
-        return None
+    if os.name != "posix" or not os.path.basename(exe).lower().startswith("python"):
+        return None  # (Windows: the temporary file)
     data_r, data_w = os.pipe()
     ctl_r, ctl_w = os.pipe()
     try:
@@ -210,7 +210,7 @@ def _start_keeper(stderr_fd):
             pass_fds=(ctl_r,),
             start_new_session=True,  # Ctrl-C at the terminal is the batch's, not the keeper's
         )
-    except OSError:
+    except (OSError, ValueError):
         os.close(data_w)
         os.close(ctl_w)
         return None
