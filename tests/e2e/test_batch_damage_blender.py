@@ -3,6 +3,7 @@ movie cut short (Blender's own movie reader shows its last whole frame for every
 it) and a render that dies (an abort: Blender's last lines must still reach stderr).
 Skipped with the reason when no Blender binary is found."""
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -96,3 +97,23 @@ def test_a_render_that_dies_under_blender_shows_its_last_lines(blender, tmp_path
     r = batch(blender, blend, *args, script=script, env={"VR_ROOT": str(ROOT)})
     assert r.returncode in (134, -6), (r.returncode, r.stderr[-2000:])  # SIGABRT
     assert "the renderer's last words before it died" in r.stderr, r.stderr[-2000:]
+
+
+def test_a_render_larger_than_memory_under_blender(blender, tmp_path):
+    """Under a 2 GiB address-space limit a 6400x3200 render aborted Blender 5.2 (exit 134,
+    stderr empty); it is refused before starting, one line, exit 1."""
+    if shutil.which("prlimit") is None:
+        pytest.skip("prlimit (util-linux) is not installed")
+    blend, _ = shot(blender, tmp_path)
+    plates = str(tmp_path / "plate.####.png")
+    out = tmp_path / "out"
+    r = blender(
+        "-b", blend, "--python-exit-code", "1", "--python", ROOT / "render_shot.py", "--",
+        "--plate", plates, "--out", out, "--frames", 1, "--resolution", 256,
+        "--scale", 10000, "--samples", 1,
+        wrap=["prlimit", f"--as={2 << 30}"],
+    )  # fmt: skip
+    assert r.returncode == 1, (r.returncode, r.stderr[-2000:])
+    lines = tool_lines(r)
+    assert len(lines) == 1 and "6400x3200 render" in lines[0] and "memory" in lines[0], lines
+    assert not out.exists() or not list(out.glob("shot*"))
