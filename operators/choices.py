@@ -10,78 +10,19 @@ from types import SimpleNamespace
 import bpy
 
 from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
-from ..virtual_reflections.params import SKY_GAINS
+from ..virtual_reflections.methods import COMBINES, METHODS, SURROUNDINGS
 
 ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
 
-COMBINE_ITEMS = (
-    (
-        "REPLACE",
-        "Replace",
-        "Chrome: the object shows the environment map (the paper's replace mode)",
-    ),
-    ("MODULATE", "Modulate", "Material colour times the environment (the paper's modulate mode)"),
-    ("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
-    ("WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"),
-)
-METHOD_ITEMS = (
-    (
-        "GROUND",
-        "Camera View + Ground",
-        "Camera View, and the ground the objects stand on seen from each object: what a mirror "
-        "shows below it comes from where the photo shows that ground (the ground: the Ground "
-        "object, else a shadow catcher, else the objects' lowest point; docs/ground.md)",
-    ),
-    (
-        "CAMERA",
-        "Camera View",
-        "Place the plate exactly by the camera's field of view, everything taken as distant; "
-        "where the photo saw nothing, extend its edges into the sky, ground and sides it "
-        "suggests (docs/accuracy.md)",
-    ),
-    (
-        "PAPER",
-        "Paper (2004)",
-        "Ropinski et al.: the plate cut into regions around the object's bounds and folded "
-        "onto a cube (neighbouring objects show on the sides facing them)",
-    ),
-)
-SURROUNDINGS_ITEMS = (  # the sky prior's gain for each: virtual_reflections.params.SKY_GAINS
-    (
-        "AUTO",
-        "Auto",
-        "Nothing said of the shot: the sky the photo does not show is taken as a neutral "
-        f"grey {SKY_GAINS['auto']:g} times the ground's brightness in the photo (learnt from "
-        "HDRIs of every kind)",
-    ),
-    (
-        "OPEN",
-        "Open Sky",
-        "Outdoors, the sky over most of what stands around (streets, fields, a sunset): the "
-        f"unseen sky is taken brighter, {SKY_GAINS['open']:g} times the ground's",
-    ),
-    (
-        "ENCLOSED",
-        "Enclosed",
-        "A dim room, a studio or a yard walled in by buildings: what is above and behind the "
-        f"camera is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for a "
-        "mirror; in the Glossy look a rough surface's map takes a brighter sky, by roughness). "
-        "A brightly lit hall, lobby or workshop is closer to Auto",
-    ),
-    (
-        "WORLD",
-        "World HDRI",
-        "The scene's world holds the HDRI shot on set: what the photo does not show comes "
-        "from it, turned and as bright as the world is set (read, never changed)",
-    ),
-    (  # last: a file stores an enum by its index, so a new item goes after the others
-        "CUSTOM",
-        "Custom",
-        "Say how bright the unseen sky is: Sky Brightness times the ground's brightness in the "
-        f"photo (Auto takes {SKY_GAINS['auto']:g}; a rough surface's map takes a brighter sky by "
-        "roughness, as under Auto)",
-    ),
-)
+
+def _items(choices) -> tuple:
+    """Blender enum items (key, label, description) of a choice list of the engine's methods."""
+    return tuple((c.key, c.label, c.description) for c in choices)
+
+
+COMBINE_ITEMS = _items(COMBINES)
+METHOD_ITEMS = _items(METHODS)
+SURROUNDINGS_ITEMS = _items(SURROUNDINGS)
 FRONT_ITEMS = (
     (
         "CONTINUOUS",

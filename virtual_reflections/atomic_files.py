@@ -20,10 +20,7 @@ import subprocess
 import sys
 import tempfile
 
-EXIT_BAD_INPUT = 2
-
-
-EXIT_FAILED = 1
+from .cli_common import EXIT_BAD_INPUT, EXIT_FAILED
 
 
 class ImageError(ValueError):

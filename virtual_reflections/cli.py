@@ -33,32 +33,28 @@ import time
 
 from . import backends
 from .atomic_files import ImageError, same_file
+from .cli_common import (
+    EXIT_BAD_INPUT,
+    EXIT_DONE,
+    EXIT_FAILED,
+    Parser,
+    Terminated,
+    UsageError,
+    error_line,
+    stopped,
+)
 from .envmap import DEFAULT_SIZE
 from .imagefiles import check_writable, read_header, read_plate, write_map
 from .interrupts import hold_interrupts, raising, silent
 from .memory import check_fits, plate_job_bytes
-from .params import METHOD_ALIASES, PLATE_METHODS, Params
+from .methods import MAX_TRIANGLES, METHOD_ALIASES, PLATE_METHODS
+from .params import Params
 from .table import max_size
 
-EXIT_BAD_INPUT = 2
-EXIT_FAILED = 1
-EXIT_INTERRUPTED = 130
-EXIT_TERMINATED = 143
+NAME = "virtual_reflections"  # how its messages start
+PROG = "python -m virtual_reflections"
 # --width, per layout: up to the largest map whose lookup table fits its compact form
 WIDTH_RANGE = {"latlong": (8, max_size("latlong")), "cube": (4, max_size("cube"))}
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the process is, so that temporary files are removed."""
-
-
-class UsageError(Exception):
-    """Bad command-line input; the message is one line."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit code 2 (argparse prints the usage too)
-        raise UsageError(message)
 
 
 def _add_map_options(p: argparse.ArgumentParser) -> None:
@@ -91,7 +87,7 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         "--triangles",
         type=int,
         default=0,
-        help="n front-face triangles, a multiple of 4 (4..1024); 0 = continuous limit",
+        help=f"n front-face triangles, a multiple of 4 (4..{MAX_TRIANGLES}); 0 = continuous limit",
     )
     p.add_argument(
         "--enlarge",
@@ -124,12 +120,12 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="python -m virtual_reflections",
+    parser = Parser(
+        prog=PROG,
         description="Environment maps from a plate, after Ropinski et al. 2004.",
         allow_abbrev=False,  # `--wid` is no `--width`: each option by its whole name
     )
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     p = sub.add_parser(
         "envmap", help="build the environment map of an object on a plate", allow_abbrev=False
     )
@@ -269,11 +265,6 @@ def _stop(signum):
     return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
-def _error(message) -> None:
-    lines = [line for line in str(message).splitlines() if line.strip()]
-    print(f"virtual_reflections: error: {lines[0] if lines else 'failed'}", file=sys.stderr)
-
-
 def main(argv=None) -> int:
     previous = {}
     try:
@@ -294,22 +285,17 @@ def main(argv=None) -> int:
         if held:  # an interrupt that landed in a callback from C
             raise held[-1]
     except (UsageError, ImageError) as exc:
-        _error(exc)
+        error_line(NAME, exc)
         return getattr(exc, "exit_code", EXIT_BAD_INPUT)
     except MemoryError as exc:
-        _error(str(exc) or "out of memory (try a smaller --width or plate)")
+        error_line(NAME, str(exc) or "out of memory (try a smaller --width or plate)")
         return EXIT_FAILED
-    except Terminated:
-        print("virtual_reflections: terminated", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or Terminated (SIGTERM)
         hook = silent
-        return EXIT_TERMINATED
-    except KeyboardInterrupt:
-        print("virtual_reflections: interrupted", file=sys.stderr)
-        hook = silent
-        return EXIT_INTERRUPTED
+        return stopped(NAME, exc)
     finally:
         sys.unraisablehook = hook
         for sig, handler in previous.items():
             if handler is not None:  # None: a handler set outside Python
                 signal.signal(sig, handler)
-    return 0
+    return EXIT_DONE

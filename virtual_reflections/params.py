@@ -1,4 +1,4 @@
-"""The methods and their parameters (Params), validated once at the edge; the sky gains.
+"""The methods' parameters (Params), validated once at the edge; the sky gain by roughness.
 
 Defaults come from the paper (§3.2): enlarge the object's bounds by 5–10 % of the image
 size (we take 7.5 %) and keep region X at least 10–20 % (we take 15 %) away from the border.
@@ -11,18 +11,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAX_TRIANGLES = 1024
-METHODS = ("paper", "camera", "ground")
-# The methods a plate and the object's box on it are enough for (the engine's command line):
-# the ground method needs the object's place in the scene (Params.ground, up) as well.
-PLATE_METHODS = tuple(m for m in METHODS if m != "ground")
-METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
-# The sky prior's gain (Params.sky_gain) for the surroundings an artist can name: "auto" knows
-# nothing of the shot (the gain that best predicts the upper hemisphere of six of Blender's
-# HDRIs from their lower one), "open" is outdoors under open sky (the same fit on city, sunrise
-# and sunset), "enclosed" a room, a studio or a walled yard (courtyard, interior, studio).
-# `python -m study sky-prior` derives all three; tests/study/test_sky_prior.py ties them to it.
-SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
+from .methods import (
+    MAX_TRIANGLES,
+    METHOD_ALIASES,
+    METHOD_NAMES,
+    SKY_GAINS,
+    reads_ground,
+    uses_camera,
+)
+
+METHODS = METHOD_NAMES  # Params.method's names (methods.METHODS); the sky gains: methods.SKY_GAINS
 MAX_SKY_GAIN = 100.0  # Params.sky_gain's upper bound
 # A map pre-filtered for a rough surface (the Mix look) holds a sky that many times brighter,
 # by roughness: a rough lobe carries a light's energy into the directions around it (the same
@@ -214,9 +212,9 @@ class Params:
                 "camera frame, its height above the ground and its radius (> 0), its contact "
                 f"shadow's strength (0..1), got {self.ground}"
             )
-        if self.method == "ground" and (self.ground is None or self.up is None):
+        if reads_ground(self.method) and (self.ground is None or self.up is None):
             raise ValueError("the ground method needs the object's position (ground) and up")
-        if self.method in ("camera", "ground") and self.hfov is None and self.intrinsics is None:
+        if uses_camera(self.method) and self.hfov is None and self.intrinsics is None:
             raise ValueError(
                 "the camera method needs the plate camera's field of view (hfov or intrinsics)"
             )

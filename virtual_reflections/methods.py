@@ -1,0 +1,228 @@
+"""The choices an artist makes, each list defined once: the methods, the Surroundings, the looks.
+
+The panel's enum items (operators/choices.py), both command lines' ``choices`` (render_shot.py,
+cli.py), the batch's options (operators/batch_options.py) and `Params` take them from here, and
+the add-on asks the predicates below what a method does instead of comparing its name. A
+method or a Surroundings is named in lower case ("ground"), the name the engine and the
+command lines use; the panel stores its upper-case key ("GROUND"), and every function here
+takes either. The looks (combine modes) are the add-on's, not the engine's; they are listed
+here because render_shot.py parses its command line before Blender's modules load.
+
+No NumPy and nothing of the engine: every other module may import this one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MAX_TRIANGLES = 1024  # the paper's front face: at most this many triangles (a multiple of 4)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One item of a choice list.
+
+    Attributes
+    ----------
+    name : str
+        The engine's and the command lines' name ("ground"; a look: "REPLACE").
+    label : str
+        The panel's name for it.
+    description : str
+        The panel's tooltip.
+    """
+
+    name: str
+    label: str
+    description: str
+
+    @property
+    def key(self) -> str:
+        """The panel's enum identifier, stored in .blend files: the name in upper case."""
+        return self.name.upper()
+
+
+@dataclass(frozen=True)
+class Method(Choice):
+    """A method: how the plate becomes an object's environment map.
+
+    Attributes
+    ----------
+    camera : bool
+        Places the plate by the camera's field of view (needs a perspective camera, or the
+        engine's hfov/intrinsics); without one the paper's method stands in.
+    ground : bool
+        Reads the ground under the object: needs the object's place in the scene, so not a
+        method for a plate and a box alone (the engine's command line).
+    distant : bool
+        Takes everything around as distant: neighbouring objects show little of each other.
+    """
+
+    camera: bool = False
+    ground: bool = False
+    distant: bool = False
+
+
+# The panel lists them in this order (a .blend stores an enum by its index: add at the end).
+METHODS = (
+    Method(
+        "ground",
+        "Camera View + Ground",
+        "Camera View, and the ground the objects stand on seen from each object: what a mirror "
+        "shows below it comes from where the photo shows that ground (the ground: the Ground "
+        "object, else a shadow catcher, else the objects' lowest point; docs/ground.md)",
+        camera=True,
+        ground=True,
+    ),
+    Method(
+        "camera",
+        "Camera View",
+        "Place the plate exactly by the camera's field of view, everything taken as distant; "
+        "where the photo saw nothing, extend its edges into the sky, ground and sides it "
+        "suggests (docs/accuracy.md)",
+        camera=True,
+        distant=True,
+    ),
+    Method(
+        "paper",
+        "Paper (2004)",
+        "Ropinski et al.: the plate cut into regions around the object's bounds and folded "
+        "onto a cube (neighbouring objects show on the sides facing them)",
+    ),
+)
+METHOD_NAMES = tuple(m.name for m in METHODS)
+# The methods a plate and the object's box on it are enough for (the engine's command line).
+PLATE_METHODS = tuple(m.name for m in METHODS if not m.ground)
+METHOD_ALIASES = {"frustum": "camera"}  # earlier name of the camera-view method, still accepted
+
+# The sky prior's gain (Params.sky_gain) for the surroundings an artist can name: "auto" knows
+# nothing of the shot (the gain that best predicts the upper hemisphere of six of Blender's
+# HDRIs from their lower one), "open" is outdoors under open sky (the same fit on city, sunrise
+# and sunset), "enclosed" a room, a studio or a walled yard (courtyard, interior, studio).
+# `python -m study sky-prior` derives all three; tests/study/test_sky_prior.py ties them to it.
+SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
+
+# Surroundings: how bright the sky the plate does not show is taken to be (Camera View +
+# Ground). The first three are SKY_GAINS'; "world" reads the shot's world HDRI, "custom" the
+# artist's Sky Brightness. Last: a file stores an enum by its index, so a new one goes after.
+SURROUNDINGS = (
+    Choice(
+        "auto",
+        "Auto",
+        "Nothing said of the shot: the sky the photo does not show is taken as a neutral "
+        f"grey {SKY_GAINS['auto']:g} times the ground's brightness in the photo (learnt from "
+        "HDRIs of every kind)",
+    ),
+    Choice(
+        "open",
+        "Open Sky",
+        "Outdoors, the sky over most of what stands around (streets, fields, a sunset): the "
+        f"unseen sky is taken brighter, {SKY_GAINS['open']:g} times the ground's",
+    ),
+    Choice(
+        "enclosed",
+        "Enclosed",
+        "A dim room, a studio or a yard walled in by buildings: what is above and behind the "
+        f"camera is taken darker, {SKY_GAINS['enclosed']:g} times the ground's brightness (for a "
+        "mirror; in the Glossy look a rough surface's map takes a brighter sky, by roughness). "
+        "A brightly lit hall, lobby or workshop is closer to Auto",
+    ),
+    Choice(
+        "world",
+        "World HDRI",
+        "The scene's world holds the HDRI shot on set: what the photo does not show comes "
+        "from it, turned and as bright as the world is set (read, never changed)",
+    ),
+    Choice(
+        "custom",
+        "Custom",
+        "Say how bright the unseen sky is: Sky Brightness times the ground's brightness in the "
+        f"photo (Auto takes {SKY_GAINS['auto']:g}; a rough surface's map takes a brighter sky by "
+        "roughness, as under Auto)",
+    ),
+)
+SURROUNDINGS_NAMES = tuple(s.name for s in SURROUNDINGS)
+
+# The looks (Combine): how a map meets each object's material. Named in upper case everywhere.
+COMBINES = (
+    Choice(
+        "REPLACE",
+        "Replace",
+        "Chrome: the object shows the environment map (the paper's replace mode)",
+    ),
+    Choice(
+        "MODULATE",
+        "Modulate",
+        "Material colour times the environment (the paper's modulate mode)",
+    ),
+    Choice("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
+    Choice(
+        "WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"
+    ),
+)
+COMBINE_NAMES = tuple(c.name for c in COMBINES)
+
+
+def method(key: str) -> Method:
+    """The method of a name or a panel key.
+
+    Parameters
+    ----------
+    key : str
+        "ground", "GROUND", an alias of METHOD_ALIASES; KeyError for another.
+
+    Returns
+    -------
+    Method
+    """
+    name = str(key).lower()
+    name = METHOD_ALIASES.get(name, name)
+    for m in METHODS:
+        if m.name == name:
+            return m
+    raise KeyError(key)
+
+
+def uses_camera(key: str) -> bool:
+    """Whether the method places the plate by the camera's view (Camera View, + Ground)."""
+    return method(key).camera
+
+
+def reads_ground(key: str) -> bool:
+    """Whether the method reads the ground under the objects (Camera View + Ground)."""
+    return method(key).ground
+
+
+def cuts_regions(key: str) -> bool:
+    """Whether the method cuts the plate into the paper's regions (Paper)."""
+    return not method(key).camera
+
+
+def takes_all_distant(key: str) -> bool:
+    """Whether the method takes all around as distant, neighbours included (Camera View)."""
+    return method(key).distant
+
+
+def view_method(key: str, perspective: bool) -> str:
+    """The engine's method (Params.method) a view of the plate takes before any ground.
+
+    Parameters
+    ----------
+    key : str
+        The artist's method (a name or a panel key).
+    perspective : bool
+        Whether the camera is a perspective one (its intrinsics are known).
+
+    Returns
+    -------
+    str
+        "camera" for a method placed by the camera's view under a perspective camera, else
+        "paper"; the ground is added per map where it applies.
+    """
+    return "camera" if perspective and uses_camera(key) else "paper"
+
+
+def takes_world_hdri(key: str, surroundings: str) -> bool:
+    """Whether the unseen surroundings come from the scene's world HDRI: a method reading the
+    ground with Surroundings World HDRI."""
+    return reads_ground(key) and str(surroundings).lower() == "world"
