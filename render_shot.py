@@ -33,8 +33,10 @@ files). Bad input (a bad range, a missing plate frame, an unwritable folder, a -
 is an input, an output or a file other than a report): one line on stderr, exit code 2,
 nothing written.
 
-The options go to the batch (operators/batch.py) as one `BatchOptions`
-(operators/batch_options.py), checked when it is made, right after parsing.
+The options are `BatchOptions`' fields (operators/batch_options.py): the parser is built from
+them, and what it parses goes to the batch (operators/batch.py) as one `BatchOptions`, checked
+once when it is made, right after parsing. Exit codes, `Terminated` and the one-line parser
+are the engine's command line's too (virtual_reflections/cli_common.py).
 
 Exit codes (docs/pipeline.md): 0 done; 2 bad input (one line, nothing written); 1 a failure
 once the run began (a full disk, a damaged plate frame, out of memory, or anything the tool
@@ -44,212 +46,84 @@ that an error before the entry runs (a script Blender cannot read) is not exit c
 Set VR_TRACEBACK=1 to see the traceback of an internal error.
 """
 
-import argparse
 import importlib.util
 import os
 import signal
 import sys
 import time
 import traceback
+from importlib import import_module
 
-EXIT_BAD_INPUT = 2
-EXIT_FAILED = 1
-EXIT_INTERRUPTED = 130
-EXIT_TERMINATED = 143
+NAME = "render_shot"  # how its messages start
+_NOT_RUN = "_vr_init_not_run"  # on a package module made here whose __init__ has not run yet
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (a farm cancelling the task), raised where the run is, so that its temporary
-    files are removed on the way out."""
+def _package():
+    """This extension's package: the one Blender (or a test) imported, else made here from
+    this file's folder under a private name, its __init__ not run yet (that needs bpy;
+    reading the command line does not: `_addon` runs it)."""
+    if __package__:
+        return sys.modules[__package__]
+    here = os.path.dirname(os.path.abspath(__file__))
+    init = os.path.join(here, "__init__.py")
+    for module in list(sys.modules.values()):
+        if getattr(module, "__file__", None) == init:
+            return module
+    spec = importlib.util.spec_from_file_location(
+        "vr_render_shot_addon", init, submodule_search_locations=[here]
+    )
+    module = importlib.util.module_from_spec(spec)
+    setattr(module, _NOT_RUN, True)
+    sys.modules[spec.name] = module
+    return module
+
+
+def _addon():
+    """(this extension's package, whether this file imported it): the enabled extension if
+    Blender loaded it, else imported from this file's folder (a checkout)."""
+    module = _package()
+    if not getattr(module, _NOT_RUN, False):
+        return module, False
+    delattr(module, _NOT_RUN)
+    module.__spec__.loader.exec_module(module)
+    return module, True
+
+
+def _part(name):
+    """The add-on's module ``name`` (``operators.batch``, ``virtual_reflections.cli_common``)."""
+    return import_module(f"{_package().__name__}.{name}")
+
+
+def _common():
+    """The engine's virtual_reflections/cli_common.py: exit codes, Terminated, the parser."""
+    return _part("virtual_reflections.cli_common")
 
 
 def _terminate(signum, frame):
-    raise Terminated()
+    raise _common().Terminated()
 
 
 def _silent(info):
     """An unraisablehook that prints nothing."""
 
 
-def _error(message):
-    lines = [line for line in str(message).splitlines() if line.strip()]
-    print(f"render_shot: error: {lines[0] if lines else 'failed'}", file=sys.stderr, flush=True)
-
-
-def _addon():
-    """This extension's package: the enabled extension if Blender loaded it, else imported
-    from this file's folder (a checkout) under a private name."""
-    here = os.path.dirname(os.path.abspath(__file__))
-    init = os.path.join(here, "__init__.py")
-    for module in list(sys.modules.values()):
-        if getattr(module, "__file__", None) == init:
-            return module, False
-    spec = importlib.util.spec_from_file_location(
-        "vr_render_shot_addon", init, submodule_search_locations=[here]
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module, True
-
-
-def _passes(text):
-    if text == "auto":
-        return text
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"expected a number of passes >= 1 or auto, not {text!r}")
-    return int(text)
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line on stderr, not the usage block
-        print(f"render_shot: error: {message}", file=sys.stderr)
-        raise SystemExit(EXIT_BAD_INPUT)
-
-
-def _resolution(text):
-    """A map width (checked by BatchOptions) or AUTO (from the object's size on screen)."""
-    if text.upper() == "AUTO":
-        return "AUTO"
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a map width or AUTO, not {text!r}") from None
-
-
-def _unit(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not 0.0 <= value <= 0.95:
-        raise argparse.ArgumentTypeError(f"expected a number from 0 to 0.95, not {text!r}")
-    return value
-
-
-def _colour(text):
-    """R,G,B (three numbers, checked by BatchOptions)."""
-    parts = text.split(",")
-    try:
-        if len(parts) != 3:
-            raise ValueError
-        return tuple(float(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected R,G,B (three numbers), not {text!r}") from None
-
-
 def parse(argv):
     """The command line -> an argparse namespace whose attributes are BatchOptions' fields
-    (`batch_options` makes it one). Needs no bpy."""
-    return parser().parse_args(argv)
+    (`batch_options` makes it one). Needs no bpy. A bad command line: one line on stderr,
+    SystemExit(2)."""
+    common = _common()
+    try:
+        return parser().parse_args(argv)
+    except common.UsageError as exc:
+        common.error_line(NAME, exc)
+        raise SystemExit(common.EXIT_BAD_INPUT) from None
 
 
-def parser() -> argparse.ArgumentParser:
-    """The command line's options, each with its help."""
-    p = _Parser(prog="render_shot", description=__doc__.splitlines()[0], allow_abbrev=False)
-    p.add_argument("blend", nargs="?", help="the shot (.blend); omit under blender -b shot.blend")
-    p.add_argument("--plate", required=True, help="background plate image file")
-    p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument(
-        "--objects",
-        nargs="+",
-        default=None,
-        metavar="NAME",
-        help="the reflective objects (default: those marked in the panel, else every visible "
-        "object with a surface but the ground they stand on: a shadow catcher, the chosen "
-        "ground, the floor under them)",
-    )
-    p.add_argument(
-        "--combine",
-        choices=("REPLACE", "MODULATE", "MIX", "WORLD"),
-        default=None,
-        help="the look: REPLACE (chrome: the object shows the map), MODULATE (the material's "
-        "colour times the map), MIX (the map blended over the material's own shader by "
-        "strength and Fresnel), WORLD (one shared map as world lighting for any material); "
-        "default: the shot's setting",
-    )
-    p.add_argument(
-        "--resolution", type=_resolution, default=None, help="lat-long map width, or AUTO"
-    )
-    p.add_argument("--triangles", type=int, default=None, help="0 = continuous")
-    p.add_argument(
-        "--method",
-        choices=("ground", "camera", "paper"),
-        default=None,
-        help="ground: the camera view with the ground seen from the object; camera: the plate "
-        "placed by the camera's field of view; paper: Ropinski et al. (default: the shot's "
-        "setting)",
-    )
-    p.add_argument(
-        "--ground-object",
-        default=None,
-        metavar="NAME",
-        help="the object the reflective objects stand on, for --method ground (default: the "
-        "shot's setting, else a shadow catcher, else a flat mesh under them, else their lowest "
-        "point)",
-    )
-    p.add_argument(
-        "--surroundings",
-        choices=("auto", "open", "enclosed", "world", "custom"),
-        default=None,
-        help="for --method ground, how bright the sky the plate does not show is taken to be: "
-        "open (outdoors under open sky), enclosed (a dim room, a studio, a walled yard), auto "
-        "(nothing known, or a brightly lit interior), world (the shot's world holds the on-set "
-        "HDRI: it is used there) or custom (the shot's Sky Brightness, or --sky-brightness); "
-        "default: the shot's setting",
-    )
-    p.add_argument(
-        "--contact-shadow",
-        type=float,
-        default=None,
-        metavar="K",
-        help="for --method ground, how much the objects darken the ground they reflect around "
-        "them: 1 the share of the sky they hide, 0 none (a plate that already shows their "
-        "shadow); default: the shot's setting",
-    )
-    p.add_argument(
-        "--sky-brightness",
-        type=float,
-        default=None,
-        metavar="G",
-        help="Surroundings custom: the unseen sky is G times the ground's brightness in the "
-        "plate (0..100; auto takes 1.6, open 3.6, enclosed 0.7); default: the shot's setting",
-    )
-    p.add_argument(
-        "--sky-tint",
-        type=_colour,
-        default=None,
-        metavar="R,G,B",
-        help="Surroundings custom: the unseen sky's colour, its brightness taken out (linear, "
-        "0..1 each, e.g. 0.6,0.75,1 for a blue sky); default: the shot's setting",
-    )
-    p.add_argument("--frame", type=int, default=None, help="the frame (default: the shot's)")
-    p.add_argument(
-        "--engine", choices=("CYCLES", "EEVEE"), default=None, help="default: the shot's"
-    )
-    p.add_argument("--samples", type=int, default=None, help="render samples (default: the shot's)")
-    p.add_argument("--scale", type=int, default=None, help="resolution percentage, 1 to 10000")
-    p.add_argument(
-        "--passes", type=_passes, default=1, help="inter-reflection passes r, or auto (default 1)"
-    )
-    p.add_argument("--tolerance", type=float, default=None, help="--passes auto: stop below")
-    p.add_argument("--max-passes", type=int, default=None, help="--passes auto: at most")
-    p.add_argument(
-        "--no-reflections",
-        action="store_true",
-        help="render the shot over the plate without virtual reflections (a reference)",
-    )
-    p.add_argument("--name", default=None, help="output file stem (default: the .blend's name)")
-    p.add_argument("--frames", default=None, help="1-240, 1..240, 1-10x2, 5 or 1,3,7-9")
-    p.add_argument("--format", choices=("exr", "png"), default="exr", help="frame range output")
-    p.add_argument("--overwrite", action="store_true", help="render complete frames again")
-    p.add_argument(
-        "--report",
-        default=None,
-        help="report path (default DIR/<name>.report.json); never an input, an output of the "
-        "run or a file other than an earlier report",
-    )
-    p.add_argument("--smoothing", type=_unit, default=None, help="bounds smoothing 0..0.95")
+def parser():
+    """The command line's options, each with its help: BatchOptions' fields
+    (operators/batch_options.py)."""
+    p = _common().Parser(prog=NAME, description=__doc__.splitlines()[0], allow_abbrev=False)
+    _part("operators.batch_options").add_arguments(p)
     return p
 
 
@@ -261,31 +135,30 @@ def main(argv=None):
     try:
         args = parse(argv)
     except SystemExit as exc:
-        return EXIT_BAD_INPUT if exc.code else 0
+        return 2 if exc.code else 0  # cli_common.EXIT_BAD_INPUT
+    except ImportError as exc:  # the batch's options need NumPy: the dependency check says so
+        return _missing_dependency(exc)
+    common = _common()
     try:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread
         previous = None
     try:
         addon, own = _addon()
-        for module in ("numpy", "OpenImageIO"):  # distributions' Blender may have neither
-            if not addon.dependencies.available(module):
-                _error(addon.dependencies.needs(module, "render_shot.py"))
-                return EXIT_BAD_INPUT
+        if _missing(addon):
+            return common.EXIT_BAD_INPUT
         options = batch_options(addon, args)
-        with _part(addon, "batch_signals").stop_on_signals():
+        with _module(addon, "operators.batch_signals").stop_on_signals():
             return run(bpy, addon, own, options)
     except (ValueError, OSError, RuntimeError) as exc:
-        _error(exc)
-        return getattr(exc, "exit_code", EXIT_BAD_INPUT)  # 1: a frame failed mid-run
+        common.error_line(NAME, exc)
+        return getattr(exc, "exit_code", common.EXIT_BAD_INPUT)  # 1: a frame failed mid-run
     except MemoryError as exc:
-        _error(str(exc) or "out of memory (a smaller --scale or plate, or a bigger machine)")
-        return EXIT_FAILED
+        message = str(exc) or "out of memory (a smaller --scale or plate, or a bigger machine)"
+        common.error_line(NAME, message)
+        return common.EXIT_FAILED
     except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, batch_signals.Interrupted)
-        code = EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
-        code = getattr(exc, "exit_code", code)
-        word = "terminated" if code == EXIT_TERMINATED else "interrupted"
-        print(f"render_shot: {word}", file=sys.stderr, flush=True)
+        code = common.stopped(NAME, exc)
         # The run ends where it stopped: what it left half made (a kernel the optional
         # compiled back end was compiling) may fail in its destructor on the way out; print
         # nothing of that, this line said why the run ended.
@@ -294,24 +167,45 @@ def main(argv=None):
     except Exception as exc:  # a bug: still one line and a failure, never exit code 0
         if os.environ.get("VR_TRACEBACK"):
             traceback.print_exc()
-        _error(f"internal error: {type(exc).__name__}: {exc}")
-        return EXIT_FAILED
+        common.error_line(NAME, f"internal error: {type(exc).__name__}: {exc}")
+        return common.EXIT_FAILED
     finally:
         if previous is not None:  # None: a handler set outside Python (Blender's)
             signal.signal(signal.SIGTERM, previous)
 
 
-def _part(addon, name):
-    """The add-on's module operators.<name> (the batch's modules)."""
-    from importlib import import_module
+def _missing(addon) -> bool:
+    """Whether NumPy or OpenImageIO is missing (distributions' Blender may have neither);
+    if so, one line saying what to install."""
+    for module in ("numpy", "OpenImageIO"):
+        if not addon.dependencies.available(module):
+            text = addon.dependencies.needs(module, "render_shot.py")
+            line = next((line for line in text.splitlines() if line.strip()), module)
+            print(f"{NAME}: error: {line}", file=sys.stderr, flush=True)
+            return True
+    return False
 
-    return import_module(f"{addon.__name__}.operators.{name}")
+
+def _missing_dependency(exc):
+    """The exit code when the command line could not be read for ``exc``, an ImportError:
+    2 and one line naming what to install when NumPy or OpenImageIO is missing, else 1 and
+    one line (an internal error)."""
+    addon, _ = _addon()
+    if _missing(addon):
+        return 2  # cli_common.EXIT_BAD_INPUT (the engine, which defines it, did not load)
+    print(f"{NAME}: error: internal error: ImportError: {exc}", file=sys.stderr, flush=True)
+    return 1
+
+
+def _module(addon, name):
+    """The add-on's module ``name`` (``operators.batch``)."""
+    return import_module(f"{addon.__name__}.{name}")
 
 
 def batch_options(addon, args):
     """The parsed command line as the add-on's BatchOptions; ValueError (one line) if an
     option is bad, before the shot is opened."""
-    return _part(addon, "batch_options").BatchOptions.from_namespace(args)
+    return _module(addon, "operators.batch_options").BatchOptions.from_namespace(args)
 
 
 def run(bpy, addon, own, options):
@@ -324,7 +218,7 @@ def run(bpy, addon, own, options):
     if registered:
         addon.register()
     try:
-        return _part(addon, "batch").render_shot(options, started)
+        return _module(addon, "operators.batch").render_shot(options, started)
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()

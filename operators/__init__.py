@@ -10,19 +10,25 @@
     batch                                    -- the headless entry (render_shot.py)
     ops                                      -- the operators
 
-Only modules with something to register are listed here, in that order.
+Only modules with something to register are listed here, in that order. They are imported
+when the add-on registers, not with this package: render_shot.py reads the batch's options
+(batch_options, no bpy) before Blender's modules are there.
 """
 
-from . import live, maps, ops, previews, sequence, shading, undo_pixels
+from importlib import import_module
 
-_modules = (undo_pixels, shading, maps, sequence, live, previews, ops)
+_MODULES = ("undo_pixels", "shading", "maps", "sequence", "live", "previews", "ops")
+
+
+def _modules():
+    return [import_module(f"{__name__}.{name}") for name in _MODULES]
 
 
 def register():
-    for module in _modules:
+    for module in _modules():
         module.register()
 
 
 def unregister():
-    for module in reversed(_modules):
+    for module in reversed(_modules()):
         module.unregister()

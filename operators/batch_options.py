@@ -1,28 +1,34 @@
 """The headless batch's options (render_shot.py, operators/batch.py), typed and checked once.
 
-`BatchOptions` holds every option the batch reads, each with render_shot's command-line
-default; `BatchOptions.from_namespace` builds it from render_shot's argparse namespace and
-sample_scenes/render_sample.py constructs it directly. The values are checked in
+`BatchOptions` holds every option the batch reads, each field with its command-line option
+(help, default, choices, a type that converts the text): `add_arguments` builds render_shot's
+parser from them and `BatchOptions.from_namespace` builds the options from what it parsed;
+sample_scenes/render_sample.py constructs them directly. The values are checked once, in
 `__post_init__`: bad input is one ValueError of one line, before anything is opened or written.
+The choice lists are the engine's (virtual_reflections/methods.py).
 
 No bpy here: nothing but the values and their checks.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import unicodedata
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, field, fields
 
+from ..virtual_reflections import methods
+from ..virtual_reflections.cli_common import words
 from ..virtual_reflections.frames import parse_frames
 from ..virtual_reflections.mapsize import WIDTHS
-from ..virtual_reflections.params import MAX_SKY_GAIN
+from ..virtual_reflections.methods import MAX_TRIANGLES
+from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
-COMBINES = ("REPLACE", "MODULATE", "MIX", "WORLD")
-METHODS = ("ground", "camera", "paper")
-# params.SKY_GAINS; world: its HDRI; custom: --sky-brightness (the scene's Sky Brightness)
-SURROUNDINGS = ("auto", "open", "enclosed", "world", "custom")
+# The choice lists of the engine's definitions (virtual_reflections/methods.py)
+COMBINES = methods.COMBINE_NAMES
+METHODS = methods.METHOD_NAMES
+SURROUNDINGS = methods.SURROUNDINGS_NAMES  # custom: --sky-brightness, --sky-tint
 ENGINES = ("CYCLES", "EEVEE")
 FORMATS = ("exr", "png")
 RESOLUTIONS = WIDTHS
@@ -38,12 +44,6 @@ FLOAT_RANGES = {
     "contact_shadow": (0.0, 1.0),
     "smoothing": (0.0, MAX_SMOOTHING),
 }
-
-
-def _words(choices):
-    """("a", "b", "c") -> "a, b or c"."""
-    choices = [str(c) for c in choices]
-    return ", ".join(choices[:-1]) + " or " + choices[-1] if len(choices) > 1 else choices[0]
 
 
 def _is_int(value):
@@ -65,43 +65,146 @@ def check_name(name, what="--name"):
     for suffix in SUFFIXES:
         if folded.endswith(suffix):
             raise ValueError(
-                f"{what} must not end in {_words(SUFFIXES)}, not {name!r}: the batch names "
+                f"{what} must not end in {words(SUFFIXES)}, not {name!r}: the batch names "
                 f"its own files so (<name>{suffix}...); choose another --name"
             )
 
 
+def _option(default=None, help="", **parsing):
+    """A BatchOptions field and its command-line option: ``help`` and argparse's keywords
+    (``type`` converts the text, ``choices``, ``metavar``, ``nargs``, ``action``). The types
+    only convert: every value is checked once, in `BatchOptions.__post_init__`."""
+    return field(default=default, metadata={"help": help, **parsing})
+
+
+def _required(help=""):
+    """A BatchOptions field without a default: a required option."""
+    return field(metadata={"help": help})
+
+
+def _resolution(text):
+    """--resolution's text: AUTO (any case), a width, or the text itself (refused by
+    BatchOptions, naming the widths)."""
+    if text.upper() == "AUTO":
+        return "AUTO"
+    try:
+        return int(text)
+    except ValueError:
+        return text
+
+
+def _passes(text):
+    """--passes' text: a number, or the text itself (auto, or refused by BatchOptions)."""
+    return int(text) if text.strip().lstrip("-").isdigit() else text
+
+
+def _colour(text):
+    """--sky-tint's R,G,B as three numbers (their range checked by BatchOptions)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        return tuple(float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected R,G,B (three numbers), not {text!r}") from None
+
+
+def _braced(choices):
+    return "{" + ",".join(choices) + "}"
+
+
 @dataclass(frozen=True)
 class BatchOptions:
-    """Every option of the headless batch. The defaults are render_shot's (argparse's):
-    None means "not given, keep the shot's own setting"."""
+    """Every option of the headless batch, each with its command line's definition (render_shot
+    builds its parser from these fields). None means "not given, keep the shot's own setting"."""
 
-    plate: str  # a still image, a sequence pattern (plate.####.exr) or a movie
-    out: str  # the output folder (created)
-    blend: str | None = None  # the shot to open; None: the file already open
-    objects: tuple[str, ...] | None = None  # None: marked objects, else visible mesh-likes
-    combine: str | None = None  # REPLACE, MODULATE, MIX or WORLD
-    resolution: int | str | None = None  # lat-long map width, or "AUTO"
-    triangles: int | None = None  # 0: continuous front face
-    method: str | None = None  # ground, camera or paper
-    ground_object: str | None = None  # the ground for --method ground (None: the shot's)
-    surroundings: str | None = None  # auto, open, enclosed, world or custom (--method ground)
-    sky_brightness: float | None = None  # Surroundings Custom's, 0..MAX_SKY_GAIN; implies custom
-    sky_tint: tuple | None = None  # Surroundings Custom's sky colour (R, G, B 0..1); implies custom
-    contact_shadow: float | None = None  # the ground's contact shadow strength, 0..1
-    frame: int | None = None  # one frame of the scene
-    engine: str | None = None  # CYCLES or EEVEE
-    samples: int | None = None  # render samples (0: the shot's)
-    scale: int | None = None  # resolution percentage (0: the shot's)
-    passes: int | str = 1  # inter-reflection passes >= 1, or "auto"
-    tolerance: float | None = None  # passes "auto": stop below (None or 0: interreflect's)
-    max_passes: int | None = None  # passes "auto": at most (None or 0: interreflect's)
-    no_reflections: bool = False  # the plain render, for comparisons
-    name: str | None = None  # output file stem; None: the .blend's name
-    frames: str | None = None  # a range: 1-240, 1..240, 1-10x2, 5 or 1,3,7-9
-    format: str = "exr"  # a frame range's output: exr or png
-    overwrite: bool = False  # render frames that are already complete again
-    report: str | None = None  # report path; None: OUT/<name>.report.json
-    smoothing: float | None = None  # bounds smoothing over frames, 0..0.95
+    plate: str = _required(
+        "background plate: a still image, a sequence (plate.####.exr) or a movie"
+    )
+    out: str = _required("output folder (created)")
+    blend: str | None = _option(
+        help="the shot (.blend); omit under blender -b shot.blend", positional=True, nargs="?"
+    )
+    objects: tuple[str, ...] | None = _option(
+        help="the reflective objects (default: those marked in the panel, else every visible "
+        "object with a surface but the ground they stand on: a shadow catcher, the chosen "
+        "ground, the floor under them)",
+        nargs="+",
+        metavar="NAME",
+    )
+    combine: str | None = _option(
+        help="the look: REPLACE (chrome: the object shows the map), MODULATE (the material's "
+        "colour times the map), MIX (the map blended over the material's own shader by "
+        "strength and Fresnel), WORLD (one shared map as world lighting for any material); "
+        "default: the shot's setting",
+        choices=COMBINES,
+    )
+    resolution: int | str | None = _option(help="lat-long map width, or AUTO", type=_resolution)
+    triangles: int | None = _option(help="0 = continuous", type=int)
+    method: str | None = _option(
+        help="ground: the camera view with the ground seen from the object; camera: the plate "
+        "placed by the camera's field of view; paper: Ropinski et al. (default: the shot's "
+        "setting)",
+        choices=METHODS,
+    )
+    ground_object: str | None = _option(
+        help="the object the reflective objects stand on, for --method ground (default: the "
+        "shot's setting, else a shadow catcher, else a flat mesh under them, else their lowest "
+        "point)",
+        metavar="NAME",
+    )
+    surroundings: str | None = _option(
+        help="for --method ground, how bright the sky the plate does not show is taken to be: "
+        "open (outdoors under open sky), enclosed (a dim room, a studio, a walled yard), auto "
+        "(nothing known, or a brightly lit interior), world (the shot's world holds the on-set "
+        "HDRI: it is used there) or custom (the shot's Sky Brightness, or --sky-brightness); "
+        "default: the shot's setting",
+        choices=SURROUNDINGS,
+    )
+    sky_brightness: float | None = _option(
+        help="Surroundings custom: the unseen sky is G times the ground's brightness in the "
+        f"plate (0..{MAX_SKY_GAIN:g}; auto takes {SKY_GAINS['auto']:g}, open "
+        f"{SKY_GAINS['open']:g}, enclosed {SKY_GAINS['enclosed']:g}); default: the shot's "
+        "setting",
+        type=float,
+        metavar="G",
+    )
+    sky_tint: tuple | None = _option(
+        help="Surroundings custom: the unseen sky's colour, its brightness taken out (linear, "
+        "0..1 each, e.g. 0.6,0.75,1 for a blue sky); default: the shot's setting",
+        type=_colour,
+        metavar="R,G,B",
+    )
+    contact_shadow: float | None = _option(
+        help="for --method ground, how much the objects darken the ground they reflect around "
+        "them: 1 the share of the sky they hide, 0 none (a plate that already shows their "
+        "shadow); default: the shot's setting",
+        type=float,
+        metavar="K",
+    )
+    frame: int | None = _option(help="the frame (default: the shot's)", type=int)
+    engine: str | None = _option(help="default: the shot's", choices=ENGINES)
+    samples: int | None = _option(help="render samples (default: the shot's)", type=int)
+    scale: int | None = _option(help="resolution percentage, 1 to 10000", type=int)
+    passes: int | str = _option(
+        1, help="inter-reflection passes r, or auto (default 1)", type=_passes
+    )
+    tolerance: float | None = _option(help="--passes auto: stop below", type=float)
+    max_passes: int | None = _option(help="--passes auto: at most", type=int)
+    no_reflections: bool = _option(
+        False,
+        help="render the shot over the plate without virtual reflections (a reference)",
+        action="store_true",
+    )
+    name: str | None = _option(help="output file stem (default: the .blend's name)")
+    frames: str | None = _option(help="1-240, 1..240, 1-10x2, 5 or 1,3,7-9")
+    format: str = _option("exr", help="frame range output", choices=FORMATS)
+    overwrite: bool = _option(False, help="render complete frames again", action="store_true")
+    report: str | None = _option(
+        help="report path (default DIR/<name>.report.json); never an input, an output of the "
+        "run or a file other than an earlier report"
+    )
+    smoothing: float | None = _option(help=f"bounds smoothing 0..{MAX_SMOOTHING}", type=float)
 
     @classmethod
     def from_namespace(cls, namespace):
@@ -130,10 +233,10 @@ class BatchOptions:
         ):
             value = getattr(self, key)
             if (value is not None or key == "format") and value not in choices:
-                raise ValueError(f"--{key} must be {_words(choices)}, not {value!r}")
+                raise ValueError(f"--{key} must be {words(choices)}, not {value!r}")
         if self.resolution is not None and self.resolution not in (*RESOLUTIONS, "AUTO"):
             raise ValueError(
-                f"--resolution must be {_words((*RESOLUTIONS, 'AUTO'))}, not {self.resolution!r}"
+                f"--resolution must be {words((*RESOLUTIONS, 'AUTO'))}, not {self.resolution!r}"
             )
         for key in ("triangles", "samples", "scale", "max_passes"):
             value = getattr(self, key)
@@ -151,8 +254,10 @@ class BatchOptions:
         if self.max_passes == 0:
             raise ValueError("--max-passes must be at least 1, not 0")
         t = self.triangles
-        if t is not None and t != 0 and not (t % 4 == 0 and 4 <= t <= 1024):
-            raise ValueError(f"--triangles must be 0 or a multiple of 4 from 4 to 1024, not {t}")
+        if t is not None and t != 0 and not (t % 4 == 0 and 4 <= t <= MAX_TRIANGLES):
+            raise ValueError(
+                f"--triangles must be 0 or a multiple of 4 from 4 to {MAX_TRIANGLES}, not {t}"
+            )
         if self.name is not None and (
             not self.name.strip()
             or self.name.startswith(".")
@@ -221,3 +326,18 @@ class BatchOptions:
 
 
 FIELDS = tuple(f.name for f in fields(BatchOptions))
+
+
+def add_arguments(parser) -> None:
+    """Add every BatchOptions field to ``parser`` (an argparse parser) as its option: the
+    namespace it parses has exactly these fields, with their defaults (`from_namespace`)."""
+    for f in fields(BatchOptions):
+        parsing = dict(f.metadata)
+        if parsing.pop("positional", False):
+            parser.add_argument(f.name, **parsing)
+            continue
+        if f.default is MISSING:
+            parsing["required"] = True
+        else:
+            parsing["default"] = f.default
+        parser.add_argument("--" + f.name.replace("_", "-"), **parsing)
