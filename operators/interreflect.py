@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..virtual_reflections import methods
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
 from ..virtual_reflections.layouts import latlong_directions
 from ..virtual_reflections.plainexr import read_channels
@@ -306,7 +307,7 @@ CAMERA_NOTE = (
 
 def _method_note(settings, limit, count) -> tuple:
     """A warning when passes would show little: several objects under Camera View."""
-    if limit > 1 and count > 1 and settings.method == "CAMERA":
+    if limit > 1 and count > 1 and methods.takes_all_distant(settings.method):
         return (CAMERA_NOTE,)
     return ()
 

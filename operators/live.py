@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 
 import bpy
 
+from ..virtual_reflections import methods
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
 from . import maps, pipeline, plate, previews, shading, world_probe
@@ -85,7 +86,7 @@ def _scene_key(scene):
 
 def _reads_world(scene) -> bool:
     settings = scene.virtual_reflections
-    return settings.method == "GROUND" and settings.surroundings == "WORLD"
+    return methods.takes_world_hdri(settings.method, settings.surroundings)
 
 
 def _world_image(world):

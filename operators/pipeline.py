@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..virtual_reflections import Params, lookup_table
+from ..virtual_reflections import Params, lookup_table, methods
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
@@ -85,12 +85,13 @@ def params(settings, intrinsics=None) -> Params:
     segmentation previews) it is the paper's. The sky prior's gain (used by Camera View +
     Ground) is the one for the surroundings the artist named (``settings.surroundings``)."""
     n = 0 if settings.front == "CONTINUOUS" else 4 * max(1, round(settings.triangles / 4))
-    camera = settings.method in ("CAMERA", "GROUND") and intrinsics is not None
+    method = methods.view_method(settings.method, perspective=intrinsics is not None)
+    camera = methods.uses_camera(method)
     return Params(
         enlarge=settings.enlarge / 100.0,
         border=settings.border / 100.0,
         triangles=n,
-        method="camera" if camera else "paper",
+        method=method,
         intrinsics=tuple(intrinsics) if camera else None,
         sky_gain=scene_sky_gain(settings),
         sky_tint=scene_sky_tint(settings),
@@ -139,7 +140,7 @@ class View:
         """Advice about the set-up: no camera view method for an orthographic camera, a plate
         whose aspect differs from the render's."""
         out = []
-        if settings.method in ("CAMERA", "GROUND") and self.params.intrinsics is None:
+        if methods.uses_camera(settings.method) and self.params.intrinsics is None:
             out.append(
                 "orthographic camera: the camera-view method needs a perspective camera; "
                 "used the paper's method"
@@ -194,7 +195,7 @@ def _floor(view, scene, depsgraph, objects, centre=None):
     the ground, or a "ground" at or above the camera (the objects stand on a column or a table
     above it: no ground the plate could show)."""
     settings = scene.virtual_reflections
-    if settings.method != "GROUND" or view.params.method != "camera" or not objects:
+    if not methods.reads_ground(settings.method) or view.params.method != "camera" or not objects:
         return None
     centre = objects_centre(depsgraph, objects) if centre is None else np.asarray(centre)
     floor = ground_height(scene, depsgraph, objects)
@@ -335,7 +336,7 @@ def scene_probe(scene, view, report):
     (Surroundings: World HDRI, Camera View + Ground), else None. A world that cannot be read
     is one line in the report's warnings, and the guessed sky (Auto) stands in."""
     settings = scene.virtual_reflections
-    if settings.method != "GROUND" or settings.surroundings != "WORLD":
+    if not methods.takes_world_hdri(settings.method, settings.surroundings):
         return None
     if view.params.intrinsics is None:
         return None
@@ -367,7 +368,7 @@ def map_table(plate_shape, box, map_params, width, report, name=None):
         table = lookup_table(w, h, tuple(float(v) for v in box), map_params, "latlong", width)
         report.tables["built" if lookup_table.cache_info().misses > misses else "reused"] += 1
     if name is not None:
-        paper = map_params.method == "paper"
+        paper = methods.cuts_regions(map_params.method)
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
     return table
 

@@ -17,7 +17,7 @@ import bpy
 import bpy.utils.previews
 import numpy as np
 
-from ..virtual_reflections import segment
+from ..virtual_reflections import methods, segment
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.overlay import draw_segmentation
 from . import colour_space, images, maps, pipeline, plate, shading
@@ -191,7 +191,7 @@ def for_object(scene, obj):
         image = plate.scene_plate(scene)
         if image is not None and out["overlay"] is not None:
             seg = segmentation(scene, obj, tuple(image.size)[::-1])
-            paper = scene.virtual_reflections.method == "PAPER"
+            paper = methods.cuts_regions(scene.virtual_reflections.method)
             name = "World" if shading.mode_of(obj) == "WORLD" else obj.name
             out["advice"] = pipeline.fit_warnings(name, seg, paper)
     except (ValueError, RuntimeError) as exc:  # a missing plate file: say so, draw on

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
+from ..virtual_reflections import methods
 from ..virtual_reflections.composite import union_box
 from . import floor, maps, pipeline, plate, shading
 
@@ -214,7 +215,7 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
 def _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step):
     """Camera View + Ground: the objects' centre smoothed over frames like their box (so the
     ground seen from it steadies with the box); None for the other methods."""
-    if settings.method != "GROUND":
+    if not methods.reads_ground(settings.method):
         return None
     raw = floor.objects_centre(depsgraph, objs)
     # (scene, map, "centre") for the handler's filters: cleared with the scene's on render_init

@@ -41,13 +41,14 @@ file opens.
 
 import bpy
 
+from ..virtual_reflections.methods import COMBINE_NAMES
 from .ground_nodes import occluder
 from .images import CREATED, check_local
 from .nodes import USE_NODES_DEPRECATED, new_node
 from .reflection_nodes import BOX_INPUTS, ensure_reflection_group, remove_unused_groups
 from .world import ENVIRONMENT_NODE, WORLD_RECORD, attach_world, detach_world
 
-MODES = ("REPLACE", "MODULATE", "MIX", "WORLD")
+MODES = COMBINE_NAMES  # the looks (virtual_reflections/methods.py)
 
 
 REFLECTABLE = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}  # object types with a surface

@@ -43,6 +43,7 @@ import math
 import bpy
 from mathutils import Vector
 
+from ..virtual_reflections import methods
 from . import floor, ground_nodes, reflection_nodes, shading
 from .images import CREATED
 from .nodes import math_node, new_node, vector_math_node, view_ray
@@ -69,7 +70,8 @@ def applies(scene, objects) -> bool:
     """True when the ray-traced pass replaces the paper's passes for ``objects``: Cycles,
     Camera View + Ground, every object in the Replace or Modulate look with the ground read
     per point."""
-    if scene.render.engine != "CYCLES" or scene.virtual_reflections.method != "GROUND":
+    method = scene.virtual_reflections.method
+    if scene.render.engine != "CYCLES" or not methods.reads_ground(method):
         return False
     return bool(objects) and all(
         shading.mode_of(obj) in LOOKS and _ground_node(_group(obj)) is not None for obj in objects

@@ -22,7 +22,7 @@ from ..operators import (
     shading,
     world_probe,
 )
-from ..operators.choices import METHOD_ITEMS
+from ..virtual_reflections import methods
 from . import presets
 
 
@@ -74,8 +74,8 @@ def _draw_surroundings(col, settings, context):
 
 def _regions_note(method) -> str:
     """What the segmentation preview shows under a method that cuts no regions."""
-    name = next(label for key, label, _ in METHOD_ITEMS if key == method)
-    ground = " and reads the ground under the objects" if method == "GROUND" else ""
+    name = methods.method(method).label
+    ground = " and reads the ground under the objects" if methods.reads_ground(method) else ""
     return (
         f"{name} cuts no regions: it places the whole plate by the camera's view{ground}. "
         "The regions shown are the paper's, for reference"
@@ -124,7 +124,7 @@ class VR_PT_main(_Tab, bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text="Look")
         presets.draw_buttons(col, settings)
-        if settings.method == "GROUND":
+        if methods.reads_ground(settings.method):
             _draw_surroundings(layout.column(align=True), settings, context)
 
         col = layout.column(align=True)
@@ -193,7 +193,7 @@ class VR_PT_object(_Tab, bpy.types.Panel):
             layout.template_icon(icon_value=shown["both"].icon_id, scale=scale)
         elif not maps.missing_file(image):  # a missing map's file: its advice says so
             layout.label(text="No plate to show", icon="ERROR")
-        if scene.virtual_reflections.method != "PAPER":
+        if not methods.cuts_regions(scene.virtual_reflections.method):
             _wrapped(layout, _regions_note(scene.virtual_reflections.method), context, "INFO")
         for line in shown["advice"]:
             col = layout.column(align=True)
@@ -214,7 +214,7 @@ class VR_PT_method(_Tab, bpy.types.Panel):
         settings = context.scene.virtual_reflections
         col = layout.column()
         col.prop(settings, "method")
-        if settings.method == "GROUND":
+        if methods.reads_ground(settings.method):
             col.prop(settings, "ground_object")
             objects = generate.candidates(context) if settings.ground_object is None else []
             if objects:  # no Ground chosen: say where it is taken from

@@ -24,6 +24,7 @@ from ..operators.choices import (
     RESOLUTION_ITEMS,
     SURROUNDINGS_ITEMS,
 )
+from ..virtual_reflections.methods import MAX_TRIANGLES
 from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
 
@@ -133,7 +134,7 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         description="n triangles for the front face (a multiple of 4)",
         default=32,
         min=4,
-        max=1024,
+        max=MAX_TRIANGLES,
         step=4,
     )
     resolution: EnumProperty(
