@@ -1,0 +1,269 @@
+"""The unseen sky's colour and level estimated from the plate, every constant fitted
+leave-one-HDRI-out (issue 41, items 2-4; docs/scenes3d.md, "The unseen sky's colour and level
+from the plate, held out by HDRI").
+
+50 mirror scenes under all 23 HDRIs (`specs`: the 16 under Blender's six, forest and night from
+the held-out set's first four, the Poly Haven fifteen's 30). Per scene the fast mirror loop's
+renders with ``split`` (`mirror.run_scene`): the default's mirror with its sky prior ("full") and
+with the prior black ("dark"), the plate-mean world's mirror, the truth. The prior's part is
+linear in its colour, so a prior of colour c renders as dark + (c / today's) (full - dark), and a
+fall-back w toward the plate mean as a blend with its mirror: every estimate of `FAMILIES` is
+scored without another render. `loho` fits each family's constants on 22 HDRIs' scenes and
+scores the 23rd's: only held-out figures are reported.
+
+    python -m study.scenes3d.heldout_sky render OUT     # ~6 min on 2 cores (bpy 4.5)
+    python -m study.scenes3d.heldout_sky fit OUT [--safe] [--groups] [--flip]   # seconds
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
+
+from ..evaluate.metrics import psnr, to_display
+from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
+from . import scenes
+
+LABEL = "Camera View + Ground"
+WIDTH, SAMPLES = 256, 16
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+GAINS = np.exp(np.linspace(math.log(1 / 8), math.log(8), 31))  # GAINS[15] == 1
+TAUS = (0.0, 0.25, 0.5, 1.0)  # the share of a colour's chromaticity the sky takes
+FALLBACKS = (0.0, 0.25, 0.5)  # a constant blend toward the plate-mean world
+BETAS = ("b0.25", "b0.5", "b1", "b2")  # a blend growing with the two levels' disagreement
+BLENDERS = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
+SAFE_FLOOR = -1.0  # dB: the safe fit's floor (issue 41, item 4)
+
+
+def specs() -> list:
+    return scenes.scene_set() + scenes.held_out_set()[:4] + scenes.polyhaven_set()
+
+
+def render(out, log=print) -> None:
+    """Render every scene of `specs` (bpy) into OUT (cache/, work/) and append its record to
+    OUT/records.jsonl; a scene already there is skipped."""
+    from . import mirror, run
+
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    done = {r["scene"]["name"] for r in _records(out)}
+    addon = run.Addon()
+    try:
+        with open(out / "records.jsonl", "a") as records:
+            for spec in specs():
+                if spec.name in done:
+                    continue
+                record, _ = mirror.run_scene(
+                    spec, addon, out / "cache", out / "work", WIDTH, SAMPLES, log, True
+                )
+                records.write(json.dumps(record) + "\n")
+                records.flush()
+    finally:
+        run.new_file()
+        addon.close()
+
+
+def _records(out) -> list:
+    path = pathlib.Path(out) / "records.jsonl"
+    if not path.is_file():
+        return []
+    latest = {}
+    for line in path.read_text().splitlines():
+        record = json.loads(line)
+        latest[record["scene"]["name"]] = record
+    return list(latest.values())
+
+
+def lum(colour) -> float:
+    return float(np.asarray(colour, np.float64) @ LUMA)
+
+
+def load(out, record) -> dict:
+    """One scene's crops (linear composites over the plate) and the plate's cues."""
+    out, name = pathlib.Path(out), record["scene"]["name"]
+    folder = next(p for p in (out / "cache").glob(f"{name}-*") if (p / "truth mirror.exr").exists())
+    plate = read_rgba(str(folder / "plate.exr"))[..., :3].astype(np.float64)
+    plate8 = srgb_to_linear(read_rgba(str(folder / "plate.png"))[..., :3]).astype(np.float64)
+    truth = read_rgba(str(folder / "truth mirror.exr"))[..., :3].astype(np.float64)
+    mean = read_rgba(str(folder / "Plate mean mirror.exr")).astype(np.float64)
+    full = read_rgba(str(out / "work" / f"{name} {LABEL}.exr")).astype(np.float64)
+    dark = read_rgba(str(out / "work" / f"{name} {LABEL} sky 0.exr")).astype(np.float64)
+    mask = mean[..., 3] > 0.5
+    ys, xs = np.nonzero(mask)
+    y0, y1, x0, x1 = max(ys.min() - 4, 0), ys.max() + 5, max(xs.min() - 4, 0), xs.max() + 5
+
+    def crop(rgba):
+        over = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate if rgba.shape[-1] == 4 else rgba
+        return over[y0:y1, x0:x1]
+
+    f, d, m, t = crop(full), crop(dark), crop(mean), crop(truth)
+    part = f - d
+    strong = part.sum(-1) > 0.02
+    today = np.median(part[strong], axis=0) if strong.sum() > 5 else np.full(3, 1e-3)
+    k = mask[y0:y1, x0:x1]
+    return {
+        "name": name,
+        "hdri": record["scene"]["hdri"],
+        "full": f,
+        "dark": d,
+        "mean": m,
+        "truth": t,
+        "part": part,
+        "mask": k,
+        "today": np.maximum(today, 1e-4),  # the prior's colour as rendered
+        "top": plate8[: max(1, plate8.shape[0] // 10)].reshape(-1, 3).mean(0),
+        "plate_mean": plate8.reshape(-1, 3).mean(0),
+        "base": psnr(to_display(m), to_display(t), k),
+    }
+
+
+LEVELS = {
+    "today's level": lambda d: lum(d["today"]),
+    "plate mean's level": lambda d: lum(d["plate_mean"]),
+    "top rows' level": lambda d: lum(d["top"]),
+}
+COLOURS = {"plate mean": lambda d: d["plate_mean"], "top rows": lambda d: d["top"]}
+
+
+def chroma(d, colour, tau):
+    """Today's prior's chromaticity moved toward ``colour``'s by ``tau``."""
+    c = np.maximum(np.asarray(colour, np.float64), 1e-6)
+    return (1 - tau) * d["today"] / lum(d["today"]) + tau * c / max(lum(c), 1e-6)
+
+
+def composite(d, gain, level, colour, tau, fallback):
+    """The scene's mirror (linear crop) with the sky of this estimate; ``fallback`` a share of
+    the plate-mean world, or "b<beta>": beta times |ln(today's level / the plate mean's)|."""
+    if isinstance(fallback, str):
+        disagree = abs(math.log(max(lum(d["today"]), 1e-6) / max(lum(d["plate_mean"]), 1e-6)))
+        fallback = min(1.0, float(fallback[1:]) * disagree)
+    target = gain * LEVELS[level](d) * chroma(d, COLOURS[colour](d), tau)
+    sky = d["dark"] + (target / d["today"]) * d["part"]
+    return (1 - fallback) * sky + fallback * d["mean"]
+
+
+def _grid(levels, colours, taus, fallbacks):
+    return [
+        (g, lv, c, t, w) for g in GAINS for lv in levels for c in colours for t in taus
+        for w in fallbacks
+    ]  # fmt: skip
+
+
+FAMILIES = {
+    "today's level × g, neutral (the default's form)": _grid(
+        ["today's level"], ["plate mean"], [0.0], [0.0]
+    ),
+    "today's level × g, tinted toward the plate mean": _grid(
+        ["today's level"], ["plate mean"], TAUS, [0.0]
+    ),
+    "today's level × g, tinted toward the top rows": _grid(
+        ["today's level"], ["top rows"], TAUS, [0.0]
+    ),
+    "the plate mean's level × g, tinted": _grid(["plate mean's level"], list(COLOURS), TAUS, [0.0]),
+    "the top rows' level × g, tinted": _grid(["top rows' level"], list(COLOURS), TAUS, [0.0]),
+    "any of these, constant fall-back w": _grid(list(LEVELS), list(COLOURS), TAUS, FALLBACKS),
+    "today's level × g, tinted, fall-back by disagreement": _grid(
+        ["today's level"], ["plate mean"], TAUS, BETAS
+    ),
+}
+
+
+def loho(scores, groups, columns, safe=False):
+    """Leave-one-group-out: for each group (an HDRI), the column of ``columns`` with the best
+    mean of ``scores`` (scenes x params) over the other groups' scenes (``safe``: less twice
+    the mean shortfall below SAFE_FLOOR), scored on the group's own. Returns (held-out score
+    per scene, the column chosen for it)."""
+    scores, groups, columns = np.asarray(scores), np.asarray(groups), np.asarray(columns)
+    held = np.empty(len(scores))
+    chosen = np.empty(len(scores), int)
+    for group in np.unique(groups):
+        train = groups != group
+        part = scores[train][:, columns]
+        objective = part.mean(0)
+        if safe:
+            objective = objective + 2.0 * np.minimum(part - SAFE_FLOOR, 0.0).mean(0)
+        best = columns[int(np.argmax(objective))]
+        held[~train] = scores[~train, best]
+        chosen[~train] = best
+    return held, chosen
+
+
+def _line(name, v):
+    return f"| {name} | {v.mean():+.2f} dB, {(v > 0).sum()}/{len(v)}, worst {v.min():+.2f} |"
+
+
+def fit(out, safe=False, groups=False, flip=False, log=print) -> dict:
+    """Score every family held out by HDRI on OUT's renders; prints the tables."""
+    data = [load(out, r) for r in _records(out)]
+    params = sorted({p for family in FAMILIES.values() for p in family}, key=str)
+    index = {p: i for i, p in enumerate(params)}
+    scores = np.array(
+        [
+            [psnr(to_display(composite(d, *p)), to_display(d["truth"]), d["mask"]) - d["base"]
+             for p in params]
+            for d in data
+        ]
+    )  # fmt: skip
+    default = np.array(
+        [psnr(to_display(d["full"]), to_display(d["truth"]), d["mask"]) - d["base"] for d in data]
+    )
+    hdris = np.array([d["hdri"] for d in data])
+    log(f"{len(data)} scenes, {len(set(hdris))} HDRIs; mirror PSNR over the plate mean")
+    log("| the unseen sky | mean, ahead, worst scene |")
+    log("|---|---|")
+    log(_line("the default (Auto; fitted on Blender's HDRIs: not held out there)", default))
+    results = {}
+    for name, family in FAMILIES.items():
+        held, chosen = loho(scores, hdris, [index[p] for p in family], safe)
+        results[name] = (held, [params[c] for c in chosen])
+        log(_line(name, held))
+        picked = sorted({(round(params[c][0], 2), *params[c][1:]) for c in chosen}, key=str)
+        log(f"|   fitted per held-out HDRI: {picked} | |")
+    if groups:
+        sets = {
+            "Blender's six": np.isin(hdris, BLENDERS),
+            "forest, night": np.isin(hdris, scenes.HELD_OUT),
+            "Poly Haven": ~np.isin(hdris, (*BLENDERS, *scenes.HELD_OUT)),
+        }
+        for name, v in {"the default": default, **{k: r[0] for k, r in results.items()}}.items():
+            cells = ", ".join(f"{s} {_line('', v[m])[5:-2]}" for s, m in sets.items())
+            log(f"{name}: {cells}")
+    if flip:
+        for name, (_, chosen) in [("the default", (None, None)), *results.items()]:
+            images = [
+                to_display(d["full"] if chosen is None else composite(d, *p))
+                for d, p in zip(data, chosen or [None] * len(data))
+            ]
+            f = [flip_ldr(x, to_display(d["truth"]), d["mask"]) for x, d in zip(images, data)]
+            u = [
+                detail_ratio(x, to_display(d["truth"]), d["mask"], upper_half(d["mask"]))
+                for x, d in zip(images, data)
+            ]
+            log(f"{name}: FLIP {np.mean(f):.3f}, upper-half detail (median) {np.nanmedian(u):.2f}")
+        f = [flip_ldr(to_display(d["mean"]), to_display(d["truth"]), d["mask"]) for d in data]
+        log(f"the plate-mean world: FLIP {np.mean(f):.3f}")
+    return {"default": default, **{k: r[0] for k, r in results.items()}}
+
+
+def main(argv=None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) < 2 or args[0] not in ("render", "fit"):
+        print("usage: python -m study.scenes3d.heldout_sky render|fit OUT [--safe] [--groups] "
+              "[--flip]", file=sys.stderr)  # fmt: skip
+        return 2
+    if args[0] == "render":
+        render(args[1])
+    else:
+        fit(args[1], "--safe" in args, "--groups" in args, "--flip" in args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

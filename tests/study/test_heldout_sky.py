@@ -1,0 +1,79 @@
+"""The held-out fit of the unseen sky (study/scenes3d/heldout_sky.py): leave-one-HDRI-out picks
+each group's constants on the other groups only, and the estimates' composites are exact where
+they should be."""
+
+import numpy as np
+import pytest
+
+from study.scenes3d import heldout_sky
+
+
+def test_loho_fits_each_group_on_the_others_only():
+    scores = np.array(
+        [
+            [3.0, 0.0],  # a
+            [3.0, 0.0],  # a
+            [0.0, 2.0],  # b
+            [0.0, 5.0],  # c
+        ]
+    )
+    groups = ["a", "a", "b", "c"]
+    held, chosen = heldout_sky.loho(scores, groups, [0, 1])
+    # a is fitted on b and c (column means 0, 3.5), b on a, a, c (2, 1.67), c on a, a, b (2, 0.67)
+    assert list(chosen) == [1, 1, 0, 0]
+    assert list(held) == [0.0, 0.0, 0.0, 0.0]  # each scored on its own scenes only
+    # restricted to one column there is nothing to fit
+    held, chosen = heldout_sky.loho(scores, groups, [1])
+    assert list(chosen) == [1, 1, 1, 1] and list(held) == [0.0, 0.0, 2.0, 5.0]
+
+
+def test_the_safe_fit_avoids_a_column_with_a_deep_loss():
+    # c held out, fitted on a and b: column 0's mean (5 - 3) / 2 = 1.0 beats column 1's 0.8,
+    # but b loses 3 dB there: less twice the mean shortfall below -1 dB, 1.0 - 2 = -1.0
+    scores = np.array([[5.0, 0.8], [-3.0, 0.8], [0.0, 0.0]])
+    groups = ["a", "b", "c"]
+    _, plain = heldout_sky.loho(scores, groups, [0, 1])
+    _, safe = heldout_sky.loho(scores, groups, [0, 1], safe=True)
+    assert plain[2] == 0 and safe[2] == 1
+
+
+def scene():
+    rng = np.random.default_rng(3)
+    dark = rng.random((6, 8, 3)) * 0.2
+    today = np.array([0.3, 0.32, 0.35])
+    part = np.zeros((6, 8, 3))
+    part[:3] = today  # the prior's pixels: the upper rows
+    return {
+        "dark": dark,
+        "part": part,
+        "full": dark + part,
+        "mean": np.full((6, 8, 3), 0.25),
+        "today": today,
+        "top": np.array([0.5, 0.6, 0.9]),
+        "plate_mean": np.array([0.2, 0.2, 0.1]),
+    }
+
+
+def test_the_defaults_own_estimate_reproduces_its_render_and_a_colour_lands_exactly():
+    d = scene()
+    today = heldout_sky.composite(d, 1.0, "today's level", "plate mean", 0.0, 0.0)
+    assert np.allclose(today, d["full"])
+    # the plate mean's level and chromaticity in full: the prior's pixels are that colour times g
+    got = heldout_sky.composite(d, 2.0, "plate mean's level", "plate mean", 1.0, 0.0)
+    assert np.allclose(got[:3], 2.0 * d["plate_mean"] + d["dark"][:3])
+    assert np.allclose(got[3:], d["dark"][3:])
+    # a full fall-back is the plate-mean world's mirror
+    assert np.allclose(heldout_sky.composite(d, 1.0, "today's level", "top rows", 0.5, 1.0), 0.25)
+    # the disagreement's fall-back: beta |ln(today's level / the plate mean's)|, at most 1
+    lum = heldout_sky.lum
+    w = min(1.0, 0.25 * abs(np.log(lum(d["today"]) / lum(d["plate_mean"]))))
+    got = heldout_sky.composite(d, 1.0, "today's level", "plate mean", 0.0, "b0.25")
+    assert np.allclose(got, (1 - w) * d["full"] + w * d["mean"]) and 0 < w < 1
+
+
+def test_every_family_holds_the_defaults_own_estimate_or_a_plate_cue():
+    first = heldout_sky.FAMILIES["today's level × g, neutral (the default's form)"]
+    assert (1.0, "today's level", "plate mean", 0.0, 0.0) in [
+        (pytest.approx(g), *rest) for g, *rest in first
+    ]
+    assert len({len(p) for f in heldout_sky.FAMILIES.values() for p in f}) == 1
