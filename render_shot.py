@@ -61,14 +61,16 @@ _NOT_RUN = "_vr_init_not_run"  # on a package module made here whose __init__ ha
 def _package():
     """This extension's package: the one Blender (or a test) imported, else made here from
     this file's folder under a private name, its __init__ not run yet (that needs bpy;
-    reading the command line does not: `_addon` runs it)."""
+    reading the command line does not: `_addon` runs it). Looked up at each call: a package
+    imported since takes the place of one made here."""
     if __package__:
         return sys.modules[__package__]
     here = os.path.dirname(os.path.abspath(__file__))
     init = os.path.join(here, "__init__.py")
-    for module in list(sys.modules.values()):
-        if getattr(module, "__file__", None) == init:
-            return module
+    found = [m for m in list(sys.modules.values()) if getattr(m, "__file__", None) == init]
+    found.sort(key=lambda m: getattr(m, _NOT_RUN, False))  # one whose __init__ ran first
+    if found:
+        return found[0]
     spec = importlib.util.spec_from_file_location(
         "vr_render_shot_addon", init, submodule_search_locations=[here]
     )

@@ -25,6 +25,15 @@ And one rule on every Python file of the repository (hidden folders such as `.ve
    matching takes `--ou` for `--out`, which bypassed the farm's refusal of `--out` after `--`
    (issue 40, row 30).
 
+And three on the product (its modules and render_shot.py), issue 43 items 1 and 5:
+7. each choice list (the methods, the Surroundings, the combine modes) is spelled once, in
+   `virtual_reflections/methods.py`: no other literal lists all of one (argparse's `choices`,
+   Blender's enum items, a list to check against), and none lists two methods (what a method
+   does is asked of that module's predicates, not re-decided by name);
+8. the triangles limit (1024) is written once, there too (`MAX_TRIANGLES`);
+9. the command-line layer is defined once, in `virtual_reflections/cli_common.py`: no other
+   `EXIT_... = n`, `Terminated` or argparse parser class.
+
 And one on the engine's public surface:
 6. every function or class in `virtual_reflections.__all__` (and every public function of a
    module listed there, as `cache`) has a numpydoc docstring: a one-line summary and, for a
@@ -695,4 +704,188 @@ def test_the_docstring_rule_sees_summaries_and_parameters(tmp_path):
         "c.q: no docstring",
         "m.A: the first line is not a one-line summary",
         "m.g: no Parameters section",
+    ]
+
+
+# --- rules 7-9: one definition of each choice list, of the triangles limit, of the CLI layer --
+
+DEFINITIONS = f"{ENGINE}/methods.py"  # the methods, the Surroundings, the looks, MAX_TRIANGLES
+CLI_COMMON = f"{ENGINE}/cli_common.py"  # exit codes, Terminated, the one-line parser
+CHOICE_LISTS = {
+    "methods": {"ground", "camera", "paper"},
+    "surroundings": {"auto", "open", "enclosed", "world", "custom"},
+    "combine modes": {"replace", "modulate", "mix", "world"},
+}
+TRIANGLES_LIMIT = 1024
+
+
+def product_files(root: Path) -> dict[str, Path]:
+    """{file path: file} of the product's modules and render_shot.py (its batch entry)."""
+    files = {
+        path.relative_to(root).as_posix(): path
+        for name, path in discover(root).items()
+        if name.partition(".")[0] in PRODUCT
+    }
+    if (root / "render_shot.py").is_file():
+        files["render_shot.py"] = root / "render_shot.py"
+    return dict(sorted(files.items()))
+
+
+def _strings(node: ast.expr) -> list[str] | None:
+    """The strings of a tuple, list or set literal of string constants only, or the first
+    strings of a literal of such tuples (Blender's enum items: (key, label, description)),
+    else None."""
+    if not isinstance(node, (ast.Tuple, ast.List, ast.Set)) or len(node.elts) < 2:
+        return None
+    firsts = [e.elts[0] if isinstance(e, ast.Tuple) and e.elts else e for e in node.elts]
+    if not all(isinstance(e, ast.Constant) and isinstance(e.value, str) for e in firsts):
+        return None
+    return [e.value for e in firsts]
+
+
+def spelled_choice_lists(root: Path) -> list[str]:
+    """`file:line` of each literal that spells a choice list outside its definition (rule 7):
+    all of one list's names and nothing else, in any order and case (argparse's
+    `choices=(...)`, a second list to check against); for the methods also two of them
+    (`("CAMERA", "GROUND")`: a module re-deciding what a method does, which
+    virtual_reflections.methods' predicates say)."""
+    problems = []
+    for where, path in product_files(root).items():
+        if where == DEFINITIONS:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=where)):
+            names = _strings(node)
+            if names is None:
+                continue
+            folded = {n.lower() for n in names}
+            for what, choices in CHOICE_LISTS.items():
+                if folded == choices or (what == "methods" and folded <= choices):
+                    problems.append(f"{where}:{node.lineno} {what} {tuple(names)}")
+                    break
+    return problems
+
+
+def _statements(tree: ast.AST):
+    """(statement, the text that says what it is about) of every statement: a simple one
+    whole; a compound one (if, for, def...) by its header, not its body."""
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.stmt):
+            continue
+        body = [
+            n for f in ("body", "orelse", "finalbody", "handlers") for n in getattr(node, f, [])
+        ]
+        yield node, [n for n in ast.iter_child_nodes(node) if n not in body]
+
+
+def triangles_limits(root: Path) -> list[str]:
+    """`file:line` of each spelling of the triangles limit outside its definition (rule 8):
+    the number in a statement about triangles (or in the if statement whose body is about
+    them), or a text naming triangles and the number."""
+    limit = str(TRIANGLES_LIMIT)
+    problems = []
+    for where, path in product_files(root).items():
+        if where == DEFINITIONS:
+            continue
+        text = path.read_text(encoding="utf-8")
+        tree = ast.parse(text, filename=where)
+        for node, header in _statements(tree):
+            numbers = [
+                n
+                for part in header
+                for n in ast.walk(part)
+                if isinstance(n, ast.Constant) and n.value == TRIANGLES_LIMIT
+            ]
+            about = (ast.get_source_segment(text, node) or "").lower()
+            if numbers and "triangle" in about:
+                problems.append(f"{where}:{numbers[0].lineno} {TRIANGLES_LIMIT}")
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Constant) and isinstance(n.value, str):
+                if "triangle" in n.value.lower() and limit in n.value:
+                    problems.append(f"{where}:{n.lineno} {n.value[:50]!r}")
+    return sorted(set(problems))
+
+
+def cli_layers(root: Path) -> list[str]:
+    """`file:line` of each exit code or argparse parser class defined outside the shared
+    command-line layer (rule 9): `EXIT_... = <number>`, `class X(argparse.ArgumentParser)`,
+    `class Terminated(...)`."""
+    problems = []
+    for where, path in product_files(root).items():
+        if where == CLI_COMMON:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=where)):
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant):
+                for target in node.targets:
+                    if isinstance(target, ast.Name) and target.id.startswith("EXIT_"):
+                        problems.append(f"{where}:{node.lineno} {target.id}")
+            if isinstance(node, ast.ClassDef) and (
+                node.name == "Terminated"
+                or any(_called_name(base) == "ArgumentParser" for base in node.bases)
+            ):
+                problems.append(f"{where}:{node.lineno} class {node.name}")
+    return problems
+
+
+def test_each_choice_list_is_spelled_once():
+    problems = spelled_choice_lists(REPO)
+    assert not problems, _report(
+        f"choice lists spelled outside {DEFINITIONS} (derive them, or ask its predicates)",
+        problems,
+    )
+
+
+def test_the_triangles_limit_is_spelled_once():
+    problems = triangles_limits(REPO)
+    assert not problems, _report(
+        f"triangles limits outside {DEFINITIONS} (MAX_TRIANGLES)", problems
+    )
+
+
+def test_one_command_line_layer():
+    problems = cli_layers(REPO)
+    assert not problems, _report(f"command-line pieces outside {CLI_COMMON}", problems)
+
+
+def test_the_rules_7_to_9_see_what_they_guard(tmp_path):
+    """Each rule finds the spellings the code had before issue 43 (items 1 and 5)."""
+    root = _package(
+        tmp_path,
+        {
+            "operators/__init__.py": "",
+            "operators/pipeline.py": "def f(s):\n    return s.method in ('CAMERA', 'GROUND')\n",
+            "operators/batch_options.py": "SURROUNDINGS = ('auto', 'open', 'enclosed', "
+            "'world', 'custom')\ndef g(t):\n    if not 4 <= t <= 1024:\n"
+            "        raise ValueError(f'--triangles must be from 4 to 1024, not {t}')\n",
+            "ui/__init__.py": "",
+            "ui/properties.py": "P = dict(name='Triangles', max=1024)\n"
+            "W = dict(name='Resolution', default=1024)\n"
+            "ITEMS = (('AUTO', 'Auto', ''), ('OPEN', 'Open', ''), ('ENCLOSED', 'E', ''),\n"
+            "    ('WORLD', 'W', ''), ('CUSTOM', 'C', ''))\n",
+            f"{ENGINE}/__init__.py": "",
+            f"{ENGINE}/methods.py": "METHODS = ('ground', 'camera', 'paper')\nMAX = 1024\n",
+            f"{ENGINE}/cli.py": "import argparse\nEXIT_FAILED = 1\n"
+            "class Terminated(KeyboardInterrupt):\n    pass\n"
+            "class _P(argparse.ArgumentParser):\n    pass\n",
+            f"{ENGINE}/cli_common.py": "EXIT_FAILED = 1\n",
+            "render_shot.py": "import argparse\np = argparse.ArgumentParser(allow_abbrev=False)\n"
+            "p.add_argument('--combine', choices=('REPLACE', 'MODULATE', 'MIX', 'WORLD'))\n"
+            "EXIT_BAD_INPUT = 2\n",
+        },
+    )
+    assert spelled_choice_lists(root) == [
+        "operators/batch_options.py:1 surroundings ('auto', 'open', 'enclosed', 'world', 'custom')",
+        "operators/pipeline.py:2 methods ('CAMERA', 'GROUND')",
+        "render_shot.py:3 combine modes ('REPLACE', 'MODULATE', 'MIX', 'WORLD')",
+        "ui/properties.py:3 surroundings ('AUTO', 'OPEN', 'ENCLOSED', 'WORLD', 'CUSTOM')",
+    ]
+    assert triangles_limits(root) == [
+        "operators/batch_options.py:3 1024",
+        "operators/batch_options.py:4 '--triangles must be from 4 to 1024, not '",
+        "ui/properties.py:1 1024",
+    ]
+    assert cli_layers(root) == [
+        "render_shot.py:4 EXIT_BAD_INPUT",
+        f"{ENGINE}/cli.py:2 EXIT_FAILED",
+        f"{ENGINE}/cli.py:3 class Terminated",
+        f"{ENGINE}/cli.py:5 class _P",
     ]

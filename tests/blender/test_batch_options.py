@@ -243,3 +243,43 @@ def test_the_sky_tint_is_three_numbers(render_shot, capsys):
         assert stop.value.code == 2
         err = capsys.readouterr().err.strip()
         assert "expected R,G,B (three numbers)" in err and "\n" not in err
+
+
+def test_the_parser_is_built_from_the_options_definitions(batch_options, render_shot):
+    """Issue 43, item 5: render_shot's options are BatchOptions' fields, their choices the
+    engine's lists (virtual_reflections/methods.py), its exit codes and parser the engine
+    CLI's (virtual_reflections/cli_common.py)."""
+    methods = addon_part("virtual_reflections.methods")
+    common = addon_part("virtual_reflections.cli_common")
+    actions = {a.dest: a for a in render_shot.parser()._actions if a.dest != "help"}
+    assert tuple(actions) == batch_options.FIELDS
+    assert tuple(actions["method"].choices) == methods.METHOD_NAMES
+    assert tuple(actions["surroundings"].choices) == methods.SURROUNDINGS_NAMES
+    assert tuple(actions["combine"].choices) == methods.COMBINE_NAMES
+    for field in dataclasses.fields(batch_options.BatchOptions):
+        assert actions[field.name].help == field.metadata["help"], field.name
+    # The extension's package render_shot finds (pytest may have imported the repository
+    # under another name): its parser class and Terminated are the engine CLI's.
+    shared = render_shot._common()
+    assert shared.__file__ == common.__file__ and shared.__name__.endswith(".cli_common")
+    assert type(render_shot.parser()) is shared.Parser
+    assert shared.EXIT_BAD_INPUT == common.EXIT_BAD_INPUT == 2
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--smoothing", "0.99"], "--smoothing: expected a number from 0 to 0.95, not 0.99"),
+        (["--passes", "0"], "--passes: expected a number of passes >= 1 or auto, not 0"),
+        (["--passes", "some"], "--passes: expected a number of passes >= 1 or auto, not 'some'"),
+        (["--resolution", "wide"], "--resolution must be 256, 512, 1024, 2048, 4096 or AUTO"),
+        (["--sky-tint", "2,0,0"], "--sky-tint: expected R,G,B from 0 to 1"),
+        (["--triangles", "2000"], "--triangles must be 0 or a multiple of 4 from 4 to 1024"),
+    ],
+)
+def test_each_value_is_checked_once_by_the_options(batch_options, render_shot, argv, message):
+    """The parser's types only turn text into values; BatchOptions checks them (one line)."""
+    namespace = render_shot.parse([*BASE, *argv])
+    with pytest.raises(ValueError) as bad:
+        batch_options.BatchOptions.from_namespace(namespace)
+    assert message in str(bad.value) and "\n" not in str(bad.value)
