@@ -116,6 +116,23 @@ def _ground_of(group):
     )
 
 
+def holds_out(obj) -> bool:
+    """True when ``obj`` is a holdout in Cycles: flagged, or every material's Cycles output a
+    Holdout shader."""
+    if getattr(obj, "is_holdout", False):
+        return True
+    materials = [slot.material for slot in getattr(obj, "material_slots", ())]
+    if not materials or None in materials:
+        return False
+    for material in materials:
+        tree = material.node_tree
+        output = tree.get_output_node("CYCLES") if tree is not None else None
+        links = output.inputs["Surface"].links if output is not None else ()
+        if not links or links[0].from_node.type != "HOLDOUT":
+            return False
+    return True
+
+
 def _world_box(obj, origin):
     """(centre, half size) of ``obj``'s world-space bounding box (axis-aligned), the centre
     relative to ``origin``."""
@@ -242,9 +259,11 @@ def _mirror_of(material):
 def traced(scene, objects):
     """While inside: ``objects`` (with Generate's Replace or Modulate look, `applies`) are
     mirrors of the look's colour (`_mirror_of`), a dome around the scene gives every ray that
-    meets nothing else the default's lookup, the scene's ground (`floor.ground_of`: the
-    chosen object, or the floor under the objects) and shadow catchers are hidden from glossy
-    rays (the dome reads the ground from the plate), and the glossy bounces
+    meets nothing else the default's lookup, a plane at the ground gives it the ground, the
+    scene's ground (`floor.ground_of`: the chosen object, or the floor under the objects),
+    shadow catchers and holdouts are hidden from glossy and shadow rays (the dome and the
+    plane read what the plate shows; the plane's Ambient Occlusion would meet them), and the
+    glossy bounces
     are at least MIN_GLOSSY_BOUNCES. Everything is put back and what was made deleted on
     leaving."""
     group = _group(objects[0])
@@ -299,10 +318,17 @@ def traced(scene, objects):
                 slot.material = mirrors[slot.material.name]
         ours = set(objects)
         for obj in scene.objects:
-            hides_ground = obj == ground_object or getattr(obj, "is_shadow_catcher", False)
-            if obj not in ours and hides_ground and obj.visible_glossy:
-                flags.append((obj, "visible_glossy", True))
-                obj.visible_glossy = False
+            if obj in ours:
+                continue
+            # The ground and shadow catchers would hide the plate's ground from the mirrors
+            # and, standing where the plane is, from its Ambient Occlusion (shadow rays); a
+            # holdout ends every ray that meets it (black): all stand for what the plate shows.
+            ground_like = obj == ground_object or getattr(obj, "is_shadow_catcher", False)
+            if ground_like or holds_out(obj):
+                for attr in ("visible_glossy", "visible_shadow"):
+                    if getattr(obj, attr):
+                        flags.append((obj, attr, True))
+                        setattr(obj, attr, False)
         cycles = scene.cycles
         for attr in ("glossy_bounces", "max_bounces"):
             value = getattr(cycles, attr)

@@ -631,3 +631,39 @@ def test_the_traced_pass_never_darkens_a_torus_and_its_ground_below_pass_one(int
     ratio = composite.mean(-1)[mirrors] / np.maximum(first.mean(-1)[mirrors], 1e-3)
     assert ratio.min() > 0.3, ratio.min()  # before: 0.11 (the ground near the contact)
     assert traced_leftovers() == []
+
+
+@pytest.mark.parametrize("kind", ["shadow catcher", "holdout", "holdout material", "holdout wall"])
+def test_the_traced_pass_is_never_black_over_a_catcher_or_a_holdout(interreflect, kind):
+    # The artist's ground is a shadow catcher (Set Up's) or a holdout, standing where the
+    # traced pass's ground plane is; a holdout wall stands behind the mirrors. Rays that met a
+    # holdout ended there (black), and the plane's Ambient Occlusion met the coplanar ground
+    # (its contact shadow total: black); the mirrors are never black where pass 1 is not.
+    scene, objects = ground_scene()
+    if kind == "holdout wall":
+        bpy.ops.mesh.primitive_plane_add(
+            size=6.0, location=(0.0, 2.0, 0.0), rotation=(1.5708, 0, 0)
+        )
+    else:
+        bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, -0.8))
+    ground = bpy.context.active_object
+    ground.is_shadow_catcher = kind == "shadow catcher"
+    ground.is_holdout = kind in ("holdout", "holdout wall")
+    if kind == "holdout material":
+        material = bpy.data.materials.new("Holdout")
+        if material.node_tree is None:
+            material.use_nodes = True
+        nodes = material.node_tree.nodes
+        nodes.clear()
+        output = nodes.new("ShaderNodeOutputMaterial")
+        material.node_tree.links.new(
+            nodes.new("ShaderNodeHoldout").outputs[0], output.inputs["Surface"]
+        )
+        ground.data.materials.append(material)
+    first, rgba, _ = run(interreflect, objects, 1)
+    composite, _, reports = run(interreflect, objects, "auto")
+    assert len(reports) == 2 and reports[1].maps_seconds == 0.0  # traced
+    mirrors = rgba[..., 3] > 0.5
+    black = mirrors & (composite.max(-1) < 0.02) & (first.max(-1) > 0.05)
+    assert black.sum() == 0, black.sum()
+    assert ground.visible_glossy and ground.visible_shadow and traced_leftovers() == []
