@@ -31,7 +31,7 @@ from .floor import ground_height, objects_box, objects_centre
 from .ground_nodes import GroundLookup
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
-SHADED_GROUND = ("REPLACE", "MODULATE", "MIX")  # looks whose material reads the ground itself
+SHADED_GROUND = methods.PER_OBJECT_LOOKS  # looks whose material reads the ground itself
 SHARP_GROUND = 0.1  # roughness under which the ground is read per shading point (sharp)
 ALL_FRAMES = 1048574  # Blender's longest frame range: an image user mapping frame n to n
 

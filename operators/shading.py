@@ -41,7 +41,7 @@ file opens.
 
 import bpy
 
-from ..virtual_reflections.methods import COMBINE_NAMES
+from ..virtual_reflections.methods import COMBINE_NAMES, WHOLE_SURFACE_LOOKS
 from .ground_nodes import occluder
 from .images import CREATED, check_local
 from .nodes import USE_NODES_DEPRECATED, new_node
@@ -319,7 +319,7 @@ def _material_copy(obj, source, mode, group, strength, ior):
             _nodes_from_settings(copy)
     copy[CREATED] = "material"
     _wire(copy.node_tree, mode, group, strength, ior, fallback, occluder(obj))
-    if mode in ("REPLACE", "MODULATE") and hasattr(copy, "cycles"):
+    if mode in WHOLE_SURFACE_LOOKS and hasattr(copy, "cycles"):
         # The emission is the reflection, not a light: don't let Cycles sample it as one
         # (light sampling of map-textured emission made renders 2-3x slower).
         copy.cycles.emission_sampling = "NONE"

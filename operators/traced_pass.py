@@ -44,6 +44,7 @@ import bpy
 from mathutils import Vector
 
 from ..virtual_reflections import methods
+from ..virtual_reflections.methods import WHOLE_SURFACE_LOOKS
 from . import floor, ground_nodes, reflection_nodes, shading
 from .images import CREATED
 from .nodes import math_node, new_node, vector_math_node, view_ray
@@ -55,7 +56,7 @@ AO_SAMPLES = 16  # Ambient Occlusion rays per shading of the ground plane
 AO_REACH = 8.0  # the contact shadow's reach: this x the largest object's bounding radius
 MIN_RADIUS = 1000.0  # m: the dome's radius at least, and 20 x the farthest object's distance
 MIN_GLOSSY_BOUNCES = 4  # raised to this for the render when the scene has fewer
-LOOKS = ("REPLACE", "MODULATE")  # the map is the whole surface: a mirror of its colour
+LOOKS = WHOLE_SURFACE_LOOKS  # the map is the whole surface: a mirror of its colour
 # the dome is seen by glossy rays only: no camera, lighting, shadows, transmission or volumes
 DOME_HIDDEN_FROM = (
     "visible_camera",

@@ -28,8 +28,8 @@ And one rule on every Python file of the repository (hidden folders such as `.ve
 And three on the product (its modules and render_shot.py), issue 43 items 1 and 5:
 7. each choice list (the methods, the Surroundings, the combine modes) is spelled once, in
    `virtual_reflections/methods.py`: no other literal lists all of one (argparse's `choices`,
-   Blender's enum items, a list to check against), and none lists two methods (what a method
-   does is asked of that module's predicates, not re-decided by name);
+   Blender's enum items, a list to check against), and none lists two methods or two looks
+   (what a method or a look does is asked of that module, not re-decided by name);
 8. the triangles limit (1024) is written once, there too (`MAX_TRIANGLES`);
 9. the command-line layer is defined once, in `virtual_reflections/cli_common.py`: no other
    `EXIT_... = n`, `Terminated` or argparse parser class.
@@ -716,6 +716,8 @@ CHOICE_LISTS = {
     "surroundings": {"auto", "open", "enclosed", "world", "custom"},
     "combine modes": {"replace", "modulate", "mix", "world"},
 }
+# Lists whose parts are decided there too (methods.uses_camera..., methods.WHOLE_SURFACE_LOOKS)
+PARTS_DECIDED = ("methods", "combine modes")
 TRIANGLES_LIMIT = 1024
 
 
@@ -746,9 +748,9 @@ def _strings(node: ast.expr) -> list[str] | None:
 def spelled_choice_lists(root: Path) -> list[str]:
     """`file:line` of each literal that spells a choice list outside its definition (rule 7):
     all of one list's names and nothing else, in any order and case (argparse's
-    `choices=(...)`, a second list to check against); for the methods also two of them
-    (`("CAMERA", "GROUND")`: a module re-deciding what a method does, which
-    virtual_reflections.methods' predicates say)."""
+    `choices=(...)`, a second list to check against); for the methods and the looks also two
+    of them (`("CAMERA", "GROUND")`: a module re-deciding what a method or a look does,
+    which virtual_reflections.methods says)."""
     problems = []
     for where, path in product_files(root).items():
         if where == DEFINITIONS:
@@ -759,10 +761,10 @@ def spelled_choice_lists(root: Path) -> list[str]:
                 continue
             folded = {n.lower() for n in names}
             for what, choices in CHOICE_LISTS.items():
-                if folded == choices or (what == "methods" and folded <= choices):
+                if folded == choices or (what in PARTS_DECIDED and folded <= choices):
                     problems.append(f"{where}:{node.lineno} {what} {tuple(names)}")
                     break
-    return problems
+    return sorted(problems, key=lambda p: (p.split(":")[0], int(p.split(":")[1].split()[0])))
 
 
 def _statements(tree: ast.AST):
@@ -852,7 +854,8 @@ def test_the_rules_7_to_9_see_what_they_guard(tmp_path):
         tmp_path,
         {
             "operators/__init__.py": "",
-            "operators/pipeline.py": "def f(s):\n    return s.method in ('CAMERA', 'GROUND')\n",
+            "operators/pipeline.py": "def f(s):\n    return s.method in ('CAMERA', 'GROUND')\n"
+            "LOOKS = ('REPLACE', 'MODULATE')\n",
             "operators/batch_options.py": "SURROUNDINGS = ('auto', 'open', 'enclosed', "
             "'world', 'custom')\ndef g(t):\n    if not 4 <= t <= 1024:\n"
             "        raise ValueError(f'--triangles must be from 4 to 1024, not {t}')\n",
@@ -875,6 +878,7 @@ def test_the_rules_7_to_9_see_what_they_guard(tmp_path):
     assert spelled_choice_lists(root) == [
         "operators/batch_options.py:1 surroundings ('auto', 'open', 'enclosed', 'world', 'custom')",
         "operators/pipeline.py:2 methods ('CAMERA', 'GROUND')",
+        "operators/pipeline.py:3 combine modes ('REPLACE', 'MODULATE')",
         "render_shot.py:3 combine modes ('REPLACE', 'MODULATE', 'MIX', 'WORLD')",
         "ui/properties.py:3 surroundings ('AUTO', 'OPEN', 'ENCLOSED', 'WORLD', 'CUSTOM')",
     ]

@@ -143,24 +143,48 @@ SURROUNDINGS = (
 )
 SURROUNDINGS_NAMES = tuple(s.name for s in SURROUNDINGS)
 
-# The looks (Combine): how a map meets each object's material. Named in upper case everywhere.
+
+@dataclass(frozen=True)
+class Look(Choice):
+    """A look (Combine): how a map meets each object's material.
+
+    Attributes
+    ----------
+    whole_surface : bool
+        The map is the whole surface, an emission (Replace, Modulate): a mirror of its colour.
+    shared : bool
+        One map shared by every object as world lighting (World), not a map per object.
+    """
+
+    whole_surface: bool = False
+    shared: bool = False
+
+
+# The looks, named in upper case everywhere.
 COMBINES = (
-    Choice(
+    Look(
         "REPLACE",
         "Replace",
         "Chrome: the object shows the environment map (the paper's replace mode)",
+        whole_surface=True,
     ),
-    Choice(
+    Look(
         "MODULATE",
         "Modulate",
         "Material colour times the environment (the paper's modulate mode)",
+        whole_surface=True,
     ),
-    Choice("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
-    Choice(
-        "WORLD", "World", "Use one shared map as camera-aligned world lighting for any material"
+    Look("MIX", "Mix", "Blend the map over the material's own shader by strength and Fresnel"),
+    Look(
+        "WORLD",
+        "World",
+        "Use one shared map as camera-aligned world lighting for any material",
+        shared=True,
     ),
 )
 COMBINE_NAMES = tuple(c.name for c in COMBINES)
+WHOLE_SURFACE_LOOKS = tuple(c.name for c in COMBINES if c.whole_surface)
+PER_OBJECT_LOOKS = tuple(c.name for c in COMBINES if not c.shared)  # a map for each object
 
 
 def method(key: str) -> Method:

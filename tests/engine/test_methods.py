@@ -71,3 +71,10 @@ def test_the_engine_cli_uses_the_shared_layer(capsys):
     with pytest.raises(cli_common.UsageError):
         cli_common.Parser(prog="x").parse_args(["--unknown"])
     assert cli_common.Parser(prog="x").allow_abbrev is False
+
+
+def test_what_each_look_does_is_defined_with_it():
+    """The traced pass and Cycles' emission sampling take the looks whose map is the whole
+    surface; the ground is read per point by the looks with a map per object."""
+    assert methods.WHOLE_SURFACE_LOOKS == ("REPLACE", "MODULATE")
+    assert methods.PER_OBJECT_LOOKS == ("REPLACE", "MODULATE", "MIX")
