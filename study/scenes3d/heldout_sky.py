@@ -11,7 +11,7 @@ fall-back w toward the plate mean as a blend with its mirror: every estimate of 
 scored without another render. `loho` fits each family's constants on 22 HDRIs' scenes and
 scores the 23rd's: only held-out figures are reported.
 
-    python -m study.scenes3d.heldout_sky render OUT     # ~6 min on 2 cores (bpy 4.5)
+    python -m study.scenes3d.heldout_sky render OUT     # ~8 min on 2 cores (bpy 4.5)
     python -m study.scenes3d.heldout_sky fit OUT [--safe] [--groups] [--flip]   # seconds
 """
 
@@ -38,6 +38,8 @@ GAINS = np.exp(np.linspace(math.log(1 / 8), math.log(8), 31))  # GAINS[15] == 1
 TAUS = (0.0, 0.25, 0.5, 1.0)  # the share of a colour's chromaticity the sky takes
 FALLBACKS = (0.0, 0.25, 0.5)  # a constant blend toward the plate-mean world
 BETAS = ("b0.25", "b0.5", "b1", "b2")  # a blend growing with the two levels' disagreement
+STRUCTURES = (0.25, 0.5, 0.75, 1.0)  # the share of the camera view's structure in the sky
+CAMERA_VIEW = "Camera View"  # its render (`render`, ``structure``) lends the sky structure
 BLENDERS = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
 SAFE_FLOOR = -1.0  # dB: the safe fit's floor (issue 41, item 4)
 
@@ -48,30 +50,43 @@ def specs() -> list:
 
 def render(out, log=print) -> None:
     """Render every scene of `specs` (bpy) into OUT (cache/, work/) and append its record to
-    OUT/records.jsonl; a scene already there is skipped."""
+    OUT/records.jsonl (the default's mirror with ``split``), then the camera view's mirror
+    (OUT/work/<scene> Camera View.exr, its record in OUT/camera.jsonl); a scene already
+    recorded is skipped."""
     from . import mirror, run
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    done = {r["scene"]["name"] for r in _records(out)}
     addon = run.Addon()
+    generate, label = addon.generate.generate, run.default_method_label
+
+    def camera_view(scene, *args, **kwargs):
+        scene.virtual_reflections.method = "CAMERA"
+        return generate(scene, *args, **kwargs)
+
     try:
-        with open(out / "records.jsonl", "a") as records:
-            for spec in specs():
-                if spec.name in done:
-                    continue
-                record, _ = mirror.run_scene(
-                    spec, addon, out / "cache", out / "work", WIDTH, SAMPLES, log, True
-                )
-                records.write(json.dumps(record) + "\n")
-                records.flush()
+        for name, split in (("records.jsonl", True), ("camera.jsonl", False)):
+            done = {r["scene"]["name"] for r in _records(out, name)}
+            if not split:  # the same scene, Generate with Camera View, its render so named
+                addon.generate.generate = camera_view
+                run.default_method_label = lambda _addon: CAMERA_VIEW
+            with open(out / name, "a") as records:
+                for spec in specs():
+                    if spec.name in done:
+                        continue
+                    record, _ = mirror.run_scene(
+                        spec, addon, out / "cache", out / "work", WIDTH, SAMPLES, log, split
+                    )
+                    records.write(json.dumps(record) + "\n")
+                    records.flush()
     finally:
+        addon.generate.generate, run.default_method_label = generate, label
         run.new_file()
         addon.close()
 
 
-def _records(out) -> list:
-    path = pathlib.Path(out) / "records.jsonl"
+def _records(out, name="records.jsonl") -> list:
+    path = pathlib.Path(out) / name
     if not path.is_file():
         return []
     latest = {}
@@ -94,6 +109,8 @@ def load(out, record) -> dict:
     truth = read_rgba(str(folder / "truth mirror.exr"))[..., :3].astype(np.float64)
     mean = read_rgba(str(folder / "Plate mean mirror.exr")).astype(np.float64)
     full = read_rgba(str(out / "work" / f"{name} {LABEL}.exr")).astype(np.float64)
+    camera_path = out / "work" / f"{name} {CAMERA_VIEW}.exr"
+    camera = read_rgba(str(camera_path)).astype(np.float64) if camera_path.is_file() else full
     dark = read_rgba(str(out / "work" / f"{name} {LABEL} sky 0.exr")).astype(np.float64)
     mask = mean[..., 3] > 0.5
     ys, xs = np.nonzero(mask)
@@ -103,7 +120,7 @@ def load(out, record) -> dict:
         over = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate if rgba.shape[-1] == 4 else rgba
         return over[y0:y1, x0:x1]
 
-    f, d, m, t = crop(full), crop(dark), crop(mean), crop(truth)
+    f, d, m, t, cv = crop(full), crop(dark), crop(mean), crop(truth), crop(camera)
     part = f - d
     strong = part.sum(-1) > 0.02
     today = np.median(part[strong], axis=0) if strong.sum() > 5 else np.full(3, 1e-3)
@@ -116,6 +133,8 @@ def load(out, record) -> dict:
         "mean": m,
         "truth": t,
         "part": part,
+        "sky": strong,  # the pixels the prior sets
+        "camera": cv,  # the camera view's mirror (the default's where it was not rendered)
         "mask": k,
         "today": np.maximum(today, 1e-4),  # the prior's colour as rendered
         "top": plate8[: max(1, plate8.shape[0] // 10)].reshape(-1, 3).mean(0),
@@ -138,21 +157,28 @@ def chroma(d, colour, tau):
     return (1 - tau) * d["today"] / lum(d["today"]) + tau * c / max(lum(c), 1e-6)
 
 
-def composite(d, gain, level, colour, tau, fallback):
+def composite(d, gain, level, colour, tau, fallback, structure=0.0):
     """The scene's mirror (linear crop) with the sky of this estimate; ``fallback`` a share of
-    the plate-mean world, or "b<beta>": beta times |ln(today's level / the plate mean's)|."""
+    the plate-mean world, or "b<beta>": beta times |ln(today's level / the plate mean's)|;
+    ``structure``: the share of the sky's pixels taken from the camera view's mirror (the
+    plate's own structure, as the paper's front face), levelled to the estimate's luminance."""
     if isinstance(fallback, str):
         disagree = abs(math.log(max(lum(d["today"]), 1e-6) / max(lum(d["plate_mean"]), 1e-6)))
         fallback = min(1.0, float(fallback[1:]) * disagree)
     target = gain * LEVELS[level](d) * chroma(d, COLOURS[colour](d), tau)
     sky = d["dark"] + (target / d["today"]) * d["part"]
+    if structure:
+        where = d["sky"]
+        seen = d["camera"][where]
+        level = lum(target) / max(float(np.mean(seen @ LUMA)), 1e-6) if where.any() else 0.0
+        sky[where] = (1 - structure) * sky[where] + structure * level * seen
     return (1 - fallback) * sky + fallback * d["mean"]
 
 
-def _grid(levels, colours, taus, fallbacks):
+def _grid(levels, colours, taus, fallbacks, structures=(0.0,)):
     return [
-        (g, lv, c, t, w) for g in GAINS for lv in levels for c in colours for t in taus
-        for w in fallbacks
+        (g, lv, c, t, w, s) for g in GAINS for lv in levels for c in colours for t in taus
+        for w in fallbacks for s in structures
     ]  # fmt: skip
 
 
@@ -171,6 +197,9 @@ FAMILIES = {
     "any of these, constant fall-back w": _grid(list(LEVELS), list(COLOURS), TAUS, FALLBACKS),
     "today's level × g, tinted, fall-back by disagreement": _grid(
         ["today's level"], ["plate mean"], TAUS, BETAS
+    ),
+    "the camera view's structure, levelled to today's or the plate mean's level × g": _grid(
+        ["today's level", "plate mean's level"], ["plate mean"], TAUS, [0.0], STRUCTURES
     ),
 }
 

@@ -51,6 +51,8 @@ def scene():
         "today": today,
         "top": np.array([0.5, 0.6, 0.9]),
         "plate_mean": np.array([0.2, 0.2, 0.1]),
+        "sky": part.sum(-1) > 0.02,
+        "camera": rng.random((6, 8, 3)),  # the camera view's mirror: the plate's structure
     }
 
 
@@ -73,7 +75,20 @@ def test_the_defaults_own_estimate_reproduces_its_render_and_a_colour_lands_exac
 
 def test_every_family_holds_the_defaults_own_estimate_or_a_plate_cue():
     first = heldout_sky.FAMILIES["today's level × g, neutral (the default's form)"]
-    assert (1.0, "today's level", "plate mean", 0.0, 0.0) in [
+    assert (1.0, "today's level", "plate mean", 0.0, 0.0, 0.0) in [
         (pytest.approx(g), *rest) for g, *rest in first
     ]
     assert len({len(p) for f in heldout_sky.FAMILIES.values() for p in f}) == 1
+
+
+def test_the_camera_views_structure_is_levelled_to_the_estimate():
+    d = scene()
+    sky = d["sky"]
+    got = heldout_sky.composite(d, 1.0, "today's level", "plate mean", 0.0, 0.0, 1.0)
+    seen = d["camera"][sky]
+    level = heldout_sky.lum(d["today"]) / (seen @ heldout_sky.LUMA).mean()
+    assert np.allclose(got[sky], level * seen)  # the structure, at today's mean luminance
+    assert np.allclose((got[sky] @ heldout_sky.LUMA).mean(), heldout_sky.lum(d["today"]))
+    assert np.allclose(got[~sky], d["full"][~sky])  # below the sky: untouched
+    half = heldout_sky.composite(d, 1.0, "today's level", "plate mean", 0.0, 0.0, 0.5)
+    assert np.allclose(half, 0.5 * (got + d["full"]))
