@@ -101,8 +101,13 @@ def _common():
     return _part("virtual_reflections.cli_common")
 
 
-def _terminate(signum, frame):
-    raise _common().Terminated()
+def _raising(exception):
+    """A signal handler that raises ``exception`` where the process is."""
+
+    def handler(signum, frame):
+        raise exception()
+
+    return handler
 
 
 def _silent(info):
@@ -142,7 +147,7 @@ def main(argv=None):
         return _missing_dependency(exc)
     common = _common()
     try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
+        previous = signal.signal(signal.SIGTERM, _raising(common.Terminated))
     except ValueError:  # not the main thread
         previous = None
     try:
