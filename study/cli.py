@@ -6,6 +6,7 @@
     python -m study scenes --mirror-only [--quick] [--cases more|heldout|polyhaven|all]
         [--cache DIR] [--sky-gain G] [--split]
         [--oracle shadow|proxies] [--contact-shadow K] [--out DIR]
+    python -m study scenes --sheet PNG [--cache DIR] [--width W] [--samples N]
     python -m study sky-prior [--polyhaven]
 
 `evaluate` measures every method against ground truth cut from Blender's bundled HDRIs
@@ -160,6 +161,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="with --mirror-only: Cycles samples per pixel (default 32)",
     )
+    p.add_argument(
+        "--sheet",
+        metavar="PNG",
+        help="only the mirror sheet: a dozen held-out and Poly Haven scenes, truth | default | "
+        "on-set probe | plate mean with PSNR and FLIP (study/scenes3d/sheet.py), written to PNG; "
+        "renders cached as --mirror-only's (--cache; --width and --samples: default 320, 32)",
+    )
     p = sub.add_parser(
         "sky-prior",
         help="the ground method's sky gain from the HDRIs (docs/ground.md)",
@@ -202,6 +210,7 @@ def main(argv=None) -> int:
                     contact_shadow=args.contact_shadow,
                     width=args.width,
                     samples=args.samples,
+                    sheet=args.sheet,
                 )
             except ScenesInputError as exc:
                 raise UsageError(str(exc)) from exc

@@ -298,6 +298,7 @@ def run_command(
     contact_shadow=None,
     width=None,
     samples=None,
+    sheet=None,
 ):
     """The `scenes` sub-command: run, print the means, and with ``out`` (default docs for the
     full set; nothing for --quick unless given) write OUT/scenes3d.json (scenes3d_quick.json),
@@ -312,7 +313,10 @@ def run_command(
     (`prior_colour.colour_table`); with ``oracle`` also that oracle's rows
     (`oracles`, `mirror.oracle_table`); ``contact_shadow``: the panel's Contact Shadow in every
     scene; ``width`` and ``samples``: its renders' width (the
-    height 9/16 of it) and Cycles samples in place of the set's."""
+    height 9/16 of it) and Cycles samples in place of the set's. ``sheet``: only the mirror
+    sheet (`run_sheet`), written to that PNG (with ``cache``, ``width`` and ``samples``)."""
+    if sheet is not None:
+        return run_sheet(sheet, cache=cache, width=width, samples=samples, log=log), {}
     if not mirror_only and (
         cache is not None
         or sky_gain is not None
@@ -443,6 +447,49 @@ def run_command(
     if target is not None:
         write_outputs(data, crops, target, config.name)
     return data, crops
+
+
+def run_sheet(path, cache=None, width=None, samples=None, log=None) -> list:
+    """`--sheet PNG`: the mirror sheet of sheet.py (a dozen held-out and Poly Haven scenes:
+    truth, default, on-set probe, plate mean), renders cached in ``cache`` (default: the
+    mirror loop's), at ``width`` x 9/16 and ``samples`` (default: the study's, 320 and 32).
+    Prints each scene and the time; returns the records."""
+    say = log or (lambda line: print(line, file=sys.stderr, flush=True))
+    path = pathlib.Path(path)
+    if path.suffix.lower() != ".png":
+        raise ScenesInputError(f"--sheet: a .png path, not {str(path)!r}")
+    width, samples = width or FULL.width, samples or FULL.samples
+    if not 64 <= width <= 3840:
+        raise ScenesInputError(f"--width: 64..3840, not {width}")
+    if not 1 <= samples <= 4096:
+        raise ScenesInputError(f"--samples: 1..4096, not {samples}")
+    cache = pathlib.Path(cache) if cache else default_cache()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ScenesInputError(f"cannot write in {exc.filename}: {exc.strerror}") from exc
+    from .. import polyhaven
+
+    try:
+        polyhaven.ensure(log=say)
+    except polyhaven.PolyHavenError as exc:
+        raise ScenesInputError(str(exc)) from exc
+    try:
+        from . import sheet
+    except ImportError as exc:
+        raise ScenesInputError(f"the 3D study needs the bpy module: {exc}") from exc
+    work = pathlib.Path(tempfile.mkdtemp(prefix="vr_scenes3d_sheet_"))
+    started = time.perf_counter()
+    try:
+        records = sheet.write(path, cache, work, width, samples, say)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print(
+        f"wrote {path}: {len(records)} scenes at {width} px, {samples} samples in "
+        f"{time.perf_counter() - started:.0f} s"
+    )
+    return records
 
 
 def run_all(quick, out, log, mirror_only, **options):

@@ -59,9 +59,11 @@ def run_scene(
     surroundings=None,
     oracle=None,
     contact_shadow=None,
+    probe=False,
 ):
     """One scene's mirror: (record, crops) shaped as `run.run_scene`'s, with only the default
-    method and the plate mean. ``split``: also the default with a black sky prior (one more
+    method and the plate mean (``probe``: and the on-set probe, `run.PROBE`, cached as the
+    plate mean is). ``split``: also the default with a black sky prior (one more
     Generate and render), and the record's "split" (`error_split`; with the PSNR over the plate
     mean at every scale of the prior, `prior_level.scale_curve`, the band's levels,
     `prior_level.band_levels`, and at every tint of the prior, `prior_colour.tint_scores`).
@@ -102,6 +104,14 @@ def run_scene(
     else:
         mean = read_rgba(str(folder / "Plate mean mirror.exr"))
     scene.world = dome
+    seen = {}
+    if probe:  # the scene's own HDRI at infinity around the subject alone
+        path = folder / f"{run.PROBE} mirror.exr"
+        if path.is_file():
+            seen[run.PROBE] = read_rgba(str(path))
+        else:
+            seen[run.PROBE] = run.render(scene, path, border)
+            renders += 1
 
     label = run.default_method_label(addon)
     settings = scene.virtual_reflections
@@ -147,7 +157,7 @@ def run_scene(
     mask = mean[..., 3] > 0.5
     results, crops, composites = {}, {}, {}
     y0, y1, x0, x1 = crop
-    for name, rgba in ((label, method), *rows.items(), (run.MEAN, mean)):
+    for name, rgba in ((label, method), *rows.items(), *seen.items(), (run.MEAN, mean)):
         composite = composites[name] = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
         results[name] = run.score(composite, truth, mask, crop)
         crops[name] = run.to_display(composite[y0:y1, x0:x1])

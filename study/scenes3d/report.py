@@ -253,6 +253,14 @@ def _image_grid(crops, names, columns, cell, title, label, path) -> None:
     height, extra height) in inches; title: (column -> title, font size); label: (name,
     column) -> (text under the image, font size)."""
     plt = _plt()
+    fig = _grid_figure(crops, names, columns, cell, title, label)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _grid_figure(crops, names, columns, cell, title, label):
+    """`_image_grid`'s figure, not saved."""
+    plt = _plt()
     width, height, extra = cell
     fig, axes = plt.subplots(
         len(names),
@@ -271,6 +279,43 @@ def _image_grid(crops, names, columns, cell, title, label, path) -> None:
             text, size = label(name, column)
             ax.set_xlabel(text, fontsize=size)
     fig.tight_layout()
+    return fig
+
+
+SHEET_COLUMNS = ("Truth", "default", PROBE, MEAN)  # "default": the add-on's default method
+SHEET_TITLES = {
+    "Truth": "Truth (path-traced)",
+    "default": "Default: Camera View +\nGround (Auto)",
+    PROBE: "On-set probe\n(the true HDRI)",
+    MEAN: "Plate mean\n(a flat colour)",
+}
+
+
+def sheet_figure(rows: list, default: str):
+    """The mirror sheet (issue 41, item 7): one row per scene, the columns SHEET_COLUMNS, each
+    cell a crop around the mirror subject, its mirror PSNR and FLIP printed under it (the
+    truth's: the scene's name and set). ``rows``: [(name, set label, {column: display crop},
+    {column: {"psnr", "flip"}})], the add-on's method under the key ``default``. Returns the
+    matplotlib figure."""
+    crops = {name: {c: images[default if c == "default" else c] for c in SHEET_COLUMNS}
+             for name, _, images, _ in rows}  # fmt: skip
+    tags = {name: tag for name, tag, _, _ in rows}
+    scores = {name: values for name, _, _, values in rows}
+
+    def label(name, column):
+        if column == "Truth":
+            return f"{name}\n({tags[name]})", 7
+        m = scores[name][default if column == "default" else column]
+        return f"{m['psnr']:.1f} dB  FLIP {m['flip']:.2f}", 8
+
+    names = [name for name, _, _, _ in rows]
+    return _grid_figure(crops, names, SHEET_COLUMNS, (2.1, 2.1, 0.4), (SHEET_TITLES.get, 9), label)
+
+
+def write_sheet(rows: list, default: str, path) -> None:
+    """`sheet_figure` saved as a PNG at ``path``."""
+    plt = _plt()
+    fig = sheet_figure(rows, default)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
