@@ -216,3 +216,34 @@ def test_the_sky_prior_derivation_runs_on_them_with_their_negative_pixels_cleare
     for i, name in enumerate(polyhaven.NAMES):
         assert gains["own"][name] == pytest.approx(min(1 + i, 5.0), abs=0.15)
     assert 1.0 < gains["alone"] < 5.0 and gains["with_train"] == gains["alone"]
+
+
+def test_the_pooled_table_holds_the_worst_scene_flip_and_the_upper_half_detail():
+    """Issue 41, item 1 in the main mirror table: per set the default's worst scene against the
+    plate mean, the mean FLIP of the default and of the plate mean, and the median detail ratio
+    of the default's upper half; records scored before those metrics read as "–"."""
+    from study.scenes3d import pooled
+
+    def scored(hdri, ours, mean, flips, upper):
+        r = record(hdri, ours, mean)
+        r["results"]["mirror"]["Ours"].update(flip=flips[0], detail_upper=upper)
+        r["results"]["mirror"]["Plate mean"].update(flip=flips[1], detail_upper=0.0)
+        return r
+
+    def run(*records):
+        return {"addon_methods": ["Ours"], "baselines": ["Plate mean"], "scenes": list(records)}
+
+    runs = {
+        "default": run(
+            scored("city", 13.0, 12.0, (0.4, 0.6), 0.2),
+            scored("studio", 14.0, 15.5, (0.5, 0.5), 0.3),
+            scored("sunset", 14.0, 13.0, (0.6, 0.7), 0.7),
+        ),
+        "heldout": run(record("forest", 15.0, 13.0)),  # before the metrics
+    }
+    lines = pooled.pooled_table(runs).splitlines()
+    assert "worst scene" in lines[0] and "FLIP" in lines[0] and "upper-half detail" in lines[0]
+    assert lines[2].endswith("| -1.50 | 0.500 / 0.600 | 0.30 |")
+    assert lines[3].endswith("| +2.00 | – / – | – |")
+    everything = next(line for line in lines if line.startswith("| all |"))
+    assert everything.endswith("| -1.50 | 0.500 / 0.600 | 0.30 |")
