@@ -485,6 +485,7 @@ def run_sheet(path, cache=None, width=None, samples=None, log=None) -> list:
         records = sheet.write(path, cache, work, width, samples, say)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    print(sheet.means_line(records))
     print(
         f"wrote {path}: {len(records)} scenes at {width} px, {samples} samples in "
         f"{time.perf_counter() - started:.0f} s"

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import pathlib
 
+import numpy as np
+
 from . import mirror, report, run, scenes
 
 HELD_OUT = ("s201", "s202", "s203", "s204", "s205", "s206")  # sphere, torus, Suzanne x 2 HDRIs
@@ -62,3 +64,20 @@ def write(path, cache, work, width, samples, log) -> list:
     rows, label, records = render_rows(cache, work, width, samples, log)
     report.write_sheet(rows, label, path)
     return records
+
+
+def means_line(records) -> str:
+    """One line: each column's mean mirror PSNR and FLIP over the sheet's scenes, per set."""
+    parts = []
+    for tag, keys in SETS.items():
+        rows = [r["results"][mirror.MIRROR] for r in records if r["scene"]["name"][:4] in keys]
+        if not rows:
+            continue
+        cells = ", ".join(
+            f"{name} {np.mean([r[name]['psnr'] for r in rows]):.2f} dB / FLIP "
+            f"{np.mean([r[name]['flip'] for r in rows]):.3f}"
+            for name in rows[0]
+            if name != "(plate itself)"
+        )
+        parts.append(f"{tag} ({len(rows)}): {cells}")
+    return "means: " + "; ".join(parts)

@@ -72,3 +72,20 @@ def test_a_sheet_that_is_not_a_png_is_a_one_line_usage_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--sheet" in err and ".png" in err
     assert not (tmp_path / "sheet.jpg").exists()
+
+
+def test_the_means_line_averages_each_column_per_set():
+    def record(name, ours, probe):
+        scores = {
+            DEFAULT: {"psnr": ours, "flip": 0.5},
+            report.PROBE: {"psnr": probe, "flip": 0.2},
+            "(plate itself)": {"psnr": 0.0, "flip": 1.0},
+        }
+        return {"scene": {"name": name}, "results": {"mirror": scores}}
+
+    line = sheet.means_line(
+        [record("s201_sphere_forest", 12.0, 18.0), record("s202_sphere_night", 14.0, 20.0)]
+    )
+    assert line.startswith("means: held out (2): ")
+    assert f"{DEFAULT} 13.00 dB / FLIP 0.500" in line and "On-set probe 19.00 dB" in line
+    assert "Poly Haven" not in line and "plate itself" not in line
