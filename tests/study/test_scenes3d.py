@@ -5,7 +5,6 @@ every add-on method renders something finite, and the outputs hold every method 
 one failure case (`--cases failures --quick`) scores every method finitely. About 80 s on two
 cores (bpy 4.5); skipped only when bpy cannot be imported."""
 
-import ast
 import importlib.util
 import json
 import math
@@ -22,14 +21,10 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def method_labels():
-    """The add-on's methods as operators/choices.py lists them (read without bpy)."""
-    tree = ast.parse((ROOT / "operators" / "choices.py").read_text())
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and any(
-            getattr(t, "id", None) == "METHOD_ITEMS" for t in node.targets
-        ):
-            return [ast.literal_eval(item)[1] for item in node.value.elts]
-    raise AssertionError("no METHOD_ITEMS in operators/choices.py")
+    """The add-on's methods, by the panel's names, from their one definition."""
+    from virtual_reflections.methods import METHODS
+
+    return [m.label for m in METHODS]
 
 
 def test_scene_descriptions_are_deterministic_and_in_range():
