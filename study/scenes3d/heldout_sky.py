@@ -140,6 +140,7 @@ def load(out, record) -> dict:
         "top": plate8[: max(1, plate8.shape[0] // 10)].reshape(-1, 3).mean(0),
         "plate_mean": plate8.reshape(-1, 3).mean(0),
         "base": psnr(to_display(m), to_display(t), k),
+        "crop": (int(y0), int(y1), int(x0), int(x1)),  # of the full frame
     }
 
 

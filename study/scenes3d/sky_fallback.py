@@ -1,0 +1,209 @@
+"""A safe fall-back for the unseen sky (issue 41, item 4: never worse than a flat colour): a cue
+from the plate alone flags the scenes where the sky estimate is unsure, and there the mirror
+leans toward the plate-mean world by a share W; the cue, its side, its threshold, W and the
+estimate's own constants are fitted leave-one-HDRI-out (`heldout_sky.loho`'s rule), on the
+renders of `heldout_sky render` (no new render). Held-out figures only.
+
+    python -m study.scenes3d.sky_fallback OUT [--safe] [--nested]   # OUT as heldout_sky's; ~2 min
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from virtual_reflections.colour import srgb_to_linear
+from virtual_reflections.imagefiles import read_rgba
+
+from ..evaluate.metrics import psnr, to_display
+from . import heldout_sky as hs
+from . import sky_retrieval
+
+SHARES = (0.0, 0.25, 0.5, 0.75, 1.0)  # W, the share of the plate-mean world where unsure
+
+
+def ground_share(hfov_deg, pitch_deg, width=256, height=144) -> float:
+    """The share of the plate's rows below the world's horizon (a level camera ``pitch_deg``
+    down, `prior_level.band_levels`' frame)."""
+    f = (width / 2) / math.tan(math.radians(hfov_deg) / 2)
+    y = (height / 2 - np.arange(height) - 0.5) / f  # +y up, row 0 at the top
+    return float(np.mean(y < math.tan(math.radians(pitch_deg))))
+
+
+def cues(d, record) -> dict:
+    """The plate's cues of an unsure sky: each from the plate (8-bit, as Generate reads it),
+    its camera and the ground band's levels (`prior_level.band_levels`) alone."""
+    band = record["split"]["band"]
+    plate = d["plate8"]
+    luma = plate.reshape(-1, 3) @ hs.LUMA
+    p10, p99 = np.percentile(luma, [10, 99])
+    levels = np.log(np.maximum([band["mean"], hs.lum(d["plate_mean"]), hs.lum(d["top"])], 1e-6))
+    scene = record["scene"]
+    return {
+        "plate range ln(p99/p10)": math.log(max(p99, 1e-6) / max(p10, 1e-6)),
+        "top rows / ground band ln": levels[2] - levels[0],
+        "ground share": ground_share(record["hfov"], scene["pitch_deg"]),
+        "band contrast ln(mean/log-average)": math.log(
+            band["mean"] / max(band["log_average"], 1e-9)
+        ),
+        "band / plate mean |ln|": abs(levels[0] - levels[1]),
+        "level cues' spread (sd ln)": float(np.std(levels)),
+    }
+
+
+def base_columns(data, retrieved=False):
+    """The sky estimates a fall-back may lean from: the default as rendered (its gain fitted on
+    Blender's HDRIs), heldout_sky's tinted level and structure families and (``retrieved``)
+    sky_retrieval's (their constants fitted with the fall-back)."""
+    grids = {
+        "the default (its gain NOT held out on Blender's six)": [None],
+        "today's level × g, tinted": hs._grid(["today's level"], ["plate mean"], hs.TAUS, [0.0]),
+        "the plate mean's level × g, tinted": hs._grid(
+            ["plate mean's level"], ["plate mean"], hs.TAUS, [0.0]
+        ),
+        "the camera view's structure, levelled × g, tinted": hs._grid(
+            ["today's level", "plate mean's level"], ["plate mean"], hs.TAUS, [0.0], [0.25, 0.5]
+        ),
+    }
+    if retrieved:
+        grids["the retrieved HDRI's structure (sky_retrieval), levelled × g, tinted"] = [
+            ("retrieved", *p) for p in sky_retrieval.grid() if p[3] < 1.0
+        ]
+    return grids
+
+
+def scores_for(data, params):
+    """(scenes, len(params), len(SHARES)) dB over the plate mean: each estimate leaning W."""
+    out = np.empty((len(data), len(params), len(SHARES)))
+    for i, d in enumerate(data):
+        truth = to_display(d["truth"])
+        for j, p in enumerate(params):
+            if p is None:
+                sky = d["full"]
+            elif p[0] == "retrieved":
+                sky = sky_retrieval.composite(d, *p[1:])
+            else:
+                sky = hs.composite(d, *p)
+            for k, w in enumerate(SHARES):
+                image = (1 - w) * sky + w * d["mean"]
+                out[i, j, k] = psnr(to_display(image), truth, d["mask"]) - d["base"]
+    return out
+
+
+def fit_fallback(scores, cue_values, groups, safe=False, fixed=None):
+    """Leave-one-group-out over (estimate j, cue c, side, threshold t, share W): a scene leans W
+    toward the plate mean when its cue is past t. ``scores`` (n, J, K) as `scores_for`,
+    ``cue_values`` (n, C); ``fixed`` (n,): the estimate j per scene fitted beforehand without a
+    fall-back (`heldout_sky.loho`; the same within a group), only the fall-back fitted then.
+    Returns (held-out dB per scene, the chosen (j, c, side, t, k) per scene, whether each
+    scene leaned)."""
+    scores, cue_values, groups = np.asarray(scores), np.asarray(cue_values), np.asarray(groups)
+    n, _, shares = scores.shape
+    held, leaned, chosen = np.empty(n), np.zeros(n, bool), [None] * n
+
+    def objective(s):
+        return s + 2.0 * np.minimum(s - hs.SAFE_FLOOR, 0.0) if safe else s
+
+    for group in np.unique(groups):
+        train = groups != group
+        s = scores[train]
+        if fixed is not None:  # one column: the estimate fitted without a fall-back
+            s = np.full_like(s, -1e9)
+            j = int(np.asarray(fixed)[~train][0])
+            s[:, j] = scores[train][:, j]
+        best, pick = -np.inf, None
+        for c in range(cue_values.shape[1]):
+            values = cue_values[train, c]
+            edges = np.unique(values)
+            thresholds = np.concatenate(([edges[0] - 1], (edges[:-1] + edges[1:]) / 2))
+            for side in (1, -1):
+                # m (n_train, T): past the threshold on this side
+                m = (side * values[:, None] > side * thresholds[None, :]).astype(float)
+                stay = objective(s[:, :, 0])  # (n, J)
+                for k in range(1, shares):
+                    lean = objective(s[:, :, k])
+                    total = (1 - m).T @ stay + m.T @ lean  # (T, J)
+                    t, j = np.unravel_index(int(np.argmax(total)), total.shape)
+                    if total[t, j] > best + 1e-12:
+                        best, pick = total[t, j], (j, c, side, thresholds[t], k)
+                total = stay.sum(0)
+                j = int(np.argmax(total))
+                if total[j] > best + 1e-12:
+                    best, pick = total[j], (j, c, side, np.inf * side, 0)
+        j, c, side, t, k = pick
+        for i in np.nonzero(~train)[0]:
+            lean = side * cue_values[i, c] > side * t
+            held[i] = scores[i, j, k if lean else 0]
+            leaned[i] = lean and k > 0
+            chosen[i] = pick
+    return held, chosen, leaned
+
+
+def fit(out, safe=False, nested=False, log=print) -> dict:
+    records = hs._records(out)
+    data = [hs.load(out, r) for r in records]
+    for d in data:
+        folder = next(p for p in (pathlib.Path(out) / "cache").glob(f"{d['name']}-*"))
+        d["plate8"] = srgb_to_linear(read_rgba(str(folder / "plate.png"))[..., :3]).astype(float)
+    retrieved = (pathlib.Path(out) / "dirs").is_dir()
+    if retrieved:  # sky_directions' renders: the retrieval's structure too
+        hdris = sky_retrieval.blender_hdris()
+        for d in data:
+            sky_retrieval.attach(out, d, hdris)
+    table = [cues(d, r) for d, r in zip(data, records)]
+    names = list(table[0])
+    cue_values = np.array([[t[k] for k in names] for t in table])
+    groups = np.array([d["hdri"] for d in data])
+    log(f"{len(data)} scenes; cues: " + ", ".join(names))
+    default = np.array(
+        [psnr(to_display(d["full"]), to_display(d["truth"]), d["mask"]) - d["base"] for d in data]
+    )
+    log("the default per scene, worst 6: " + ", ".join(
+        f"{data[i]['name']} {default[i]:+.2f} [" + ", ".join(f"{v:.2f}" for v in cue_values[i])
+        + "]"
+        for i in np.argsort(default)[:6]
+    ))  # fmt: skip
+    log("cue medians: " + ", ".join(f"{v:.2f}" for v in np.median(cue_values, 0)))
+    log("| estimate + fall-back where a cue says unsure | mean, ahead, worst | leaned |")
+    log("|---|---|---|")
+    results = {}
+    for name, params in base_columns(data, retrieved).items():
+        scores = scores_for(data, params)
+        plain, fixed = hs.loho(scores[:, :, 0], groups, list(range(len(params))), safe)
+        how = "fitted with the estimate"
+        if nested:
+            how = "fitted after the estimate"
+        else:
+            fixed = None
+        held, chosen, leaned = fit_fallback(scores, cue_values, groups, safe, fixed)
+        results[name] = held
+        log(hs._line(f"{name}, no fall-back", plain) + " |")
+        log(hs._line(f"{name}, + fall-back ({how})", held) + f" {leaned.sum()} |")
+        picks = sorted({(names[c], s, round(float(t), 2), SHARES[k]) for _, c, s, t, k in chosen})
+        log(f"|   fitted per held-out HDRI (cue, side, threshold, W): {picks} | | |")
+        log("|   worst held out: " + ", ".join(
+            f"{data[i]['name']} {held[i]:+.2f}" for i in np.argsort(held)[:4]) + " | | |"
+        )  # fmt: skip
+        for c, cue in enumerate(names):  # one cue alone
+            one, _, leaned = fit_fallback(scores, cue_values[:, [c]], groups, safe, fixed)
+            log(hs._line(f"  {cue} alone", one) + f" {leaned.sum()} |")
+    return results
+
+
+def main(argv=None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args:
+        print(
+            "usage: python -m study.scenes3d.sky_fallback OUT [--safe] [--nested]",
+            file=sys.stderr,
+        )
+        return 2
+    fit(args[0], "--safe" in args, "--nested" in args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
