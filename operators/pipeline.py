@@ -21,9 +21,9 @@ import numpy as np
 from ..virtual_reflections import Params, lookup_table, methods
 from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table, prior_parts
-from ..virtual_reflections.fill import PLATE_SKY_GAIN, sky_in_view
+from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.ggx_lobe import dominant_shift
-from ..virtual_reflections.params import SKY_GAINS, sky_gain_for
+from ..virtual_reflections.params import sky_gain_for
 from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
 from . import bounds, plate, shading, world_probe
@@ -95,7 +95,6 @@ def params(settings, intrinsics=None) -> Params:
         intrinsics=tuple(intrinsics) if camera else None,
         sky_gain=scene_sky_gain(settings),
         sky_tint=scene_sky_tint(settings),
-        sky_from_plate=settings.surroundings == "AUTO",
     )
 
 
@@ -105,8 +104,6 @@ def scene_sky_gain(settings, roughness: float = 0.0) -> float:
     Sky Brightness."""
     kind = settings.surroundings.lower()
     custom = settings.sky_brightness if kind == "custom" else None
-    if kind == "auto":  # times the plate mean's level (Params.sky_from_plate), not the ground's
-        return sky_gain_for(kind, roughness) * PLATE_SKY_GAIN / SKY_GAINS["auto"]
     return sky_gain_for(kind, roughness, custom)
 
 
@@ -373,17 +370,7 @@ def map_table(plate_shape, box, map_params, width, report, name=None):
     if name is not None:
         paper = methods.cuts_regions(map_params.method)
         report.warnings.extend(fit_warnings(name, table.segmentation, paper))
-        if table.fill is not None and table.fill.lean > 0:
-            report.warnings.append(SAFE_SIDE.format(name=name, lean=table.fill.lean))
     return table
-
-
-# Surroundings Auto on a plate that shows almost no sky (engine fill.SAFE_LEAN).
-SAFE_SIDE = (
-    "{name}: the plate shows almost no sky, so the unseen sky is unsure and the reflection "
-    "leans to the safe side ({lean:.0%} toward the plate's mean colour); set Surroundings if "
-    "you know the shot"
-)
 
 
 def gather(table, pixels, report, roughness=0.0, pyramids=None, probe=None):

@@ -17,15 +17,7 @@ import numpy as np
 from .backends import backend, given, kernels, run
 from .colour import clean_plate
 from .extension import apply as apply_extension
-from .fill import (
-    FILL_BINS,
-    fill_lookup,
-    fill_profile,
-    fill_values,
-    plate_mean,
-    plate_sky,
-    prior_level,
-)
+from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, prior_level
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .parallel import CHUNK, for_blocks
 from .params import Params
@@ -123,7 +115,6 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             sky=fill.sky,
             sky_gain=fill.sky_gain,
             sky_tint=fill.sky_tint,
-            from_plate=fill.from_plate,
         )
     out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
     if table.fill_texels is not None:  # the fill everywhere, the groups written over it
@@ -155,9 +146,6 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
         gather_supersample(table.supersample, source, out, plate=rows)
     for texels, index, weight in table.groups:
         _gather(source, texels, index, weight, out)
-    if fill is not None and fill.lean > 0:  # the safe fall-back (Params.sky_from_plate)
-        out *= np.float32(1.0 - fill.lean)
-        out += np.float32(fill.lean) * plate_mean(level)
     return out.reshape(table.shape + (3,))
 
 
@@ -202,11 +190,7 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     source = store[(seg.height, seg.width, table.levels, first)]
     pyramid = source[: pyramid_size(seg.height, seg.width, table.levels, first)]
     shapes = level_shapes(seg.height, seg.width, table.levels)
-    pixels = level_view(pyramid, shapes, fill.level, first)
-    if fill.from_plate:  # the prior at gain 1 is plate_sky's colour: its channels' mean
-        level = float(plate_sky(pixels, 1.0).mean()) * (1.0 - fill.lean)
-    else:
-        level = prior_level(pixels, fill.bins, fill.energy)
+    level = prior_level(level_view(pyramid, shapes, fill.level, first), fill.bins, fill.energy)
     lit -= without
     weight = lit.mean(axis=-1)
     weight *= np.float32(1.0 / max(level, 1e-30))

@@ -187,15 +187,6 @@ HORIZON_BIN = 90  # the bin of elevation 0: bins above it look above the horizon
 # when under MIN_GROUND_SHARE of it lies in that band (a camera looking up).
 GROUND_BAND_DEG = (5.0, 40.0)
 MIN_GROUND_SHARE = 0.05
-# Params.sky_from_plate (the add-on's Auto): the prior's level PLATE_SKY_GAIN times the whole
-# plate's mean luminance, its colour PLATE_SKY_TINT of the way toward the plate mean's; where
-# over SAFE_GROUND_SHARE of the plate's rows see no sky, the whole map leans SAFE_LEAN toward
-# the plate mean. Fitted on 50 scenes under 23 HDRIs and chosen on held-out figures
-# (study/scenes3d/sky_fallback.py; docs/scenes3d.md, "A safe fall-back and retrieval").
-PLATE_SKY_GAIN = 1.32
-PLATE_SKY_TINT = 0.5
-SAFE_GROUND_SHARE = 0.93
-SAFE_LEAN = 0.25
 
 
 def sky_share(sides: int) -> np.ndarray:
@@ -222,7 +213,6 @@ def fill_profile(
     sky=None,
     sky_gain: float = 1.0,
     sky_tint=None,
-    from_plate: bool = False,
 ) -> np.ndarray:
     """The fill (sides * FILL_BINS, 3) float32 of one frame, sides = len(window): per side and
     elevation bin the log-average (per channel) of the pixels `level_pixels` (h, w, 3) in its
@@ -240,7 +230,7 @@ def fill_profile(
     neutral sky `sky_gain` times as bright as the whole plate (its log-average brightened by
     `energy` as above); with `sky_share`, every bin above the horizon is that sky alone
     (docs/scenes3d.md, "The unseen sky"). `sky_tint` (R, G, B; None: neutral) colours that sky,
-    its luminance kept. `from_plate` (Params.sky_from_plate): that sky is `plate_sky` instead.
+    its luminance kept.
     """
     sides = window.shape[0]
     size = sides * FILL_BINS
@@ -284,34 +274,10 @@ def fill_profile(
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     if sky is not None and (sky < 1).any():
-        if from_plate:
-            prior = plate_sky(pixels, sky_gain, sky_tint)
-        else:
-            prior = np.float32(sky_gain * prior_level(pixels, bins, energy)) * tint_colour(sky_tint)
+        prior = np.float32(sky_gain * prior_level(pixels, bins, energy)) * tint_colour(sky_tint)
         share = sky[:, None]
         out[:] = share * out + (1.0 - share) * prior
     return out
-
-
-def plate_sky(level_pixels: np.ndarray, sky_gain: float, sky_tint=None) -> np.ndarray:
-    """(3,) float32: the prior of Params.sky_from_plate, ``sky_gain`` times the luminance of the
-    plate's mean (the fill's mip level ``level_pixels``), its colour ``sky_tint``'s moved
-    PLATE_SKY_TINT of the way toward the plate mean's chromaticity."""
-    mean = np.maximum(level_pixels.reshape(-1, 3).astype(np.float64).mean(0), 0.0)
-    luma = float(mean @ REC709_LUMA)
-    colour = (1.0 - PLATE_SKY_TINT) * tint_colour(sky_tint)
-    if luma > 1e-30:
-        colour = colour + np.float32(PLATE_SKY_TINT) * tint_colour(mean)
-    else:
-        colour = colour + np.float32(PLATE_SKY_TINT) * tint_colour(None)
-    return (np.float32(sky_gain * luma) * colour).astype(np.float32)
-
-
-def plate_mean(level_pixels: np.ndarray) -> np.ndarray:
-    """(3,) float32: the plate's mean colour from its fill mip level (the safe fall-back's)."""
-    return np.maximum(level_pixels.reshape(-1, 3).astype(np.float64).mean(0), 0.0).astype(
-        np.float32
-    )
 
 
 def tint_colour(tint) -> np.ndarray:

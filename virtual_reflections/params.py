@@ -123,10 +123,6 @@ class Params:
     sky_tint : (r, g, b)
         The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
         neutral (the add-on's, but for Surroundings Custom).
-    sky_from_plate : bool
-        With `up` (the add-on's Auto): the sky prior is `sky_gain` times the whole plate's mean
-        luminance, tinted halfway toward its colour, and a plate that shows almost no sky
-        leans the whole map toward the plate mean (fill.plate_sky, fill.SAFE_LEAN).
     """
 
     enlarge: float = 0.075
@@ -147,7 +143,6 @@ class Params:
     up: tuple | None = None
     sky_gain: float = SKY_GAINS["auto"]
     sky_tint: tuple = (1.0, 1.0, 1.0)
-    sky_from_plate: bool = False
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):

@@ -39,14 +39,11 @@ from . import camera_view, ground, seen_texels
 from .cache import bounded
 from .extension import Extension, extension
 from .fill import (
-    SAFE_GROUND_SHARE,
-    SAFE_LEAN,
     fill_bins_latlong,
     fill_geometry,
     fill_level,
     fill_taps,
     side_weight,
-    sky_in_view,
     sky_share,
 )
 from .layouts import directions_at, latlong_directions, map_shape, texel_directions
@@ -126,8 +123,6 @@ class Fill:
     sky: np.ndarray | None = None  # sky_share, with a world horizon (Params.up)
     sky_gain: float = 1.0
     sky_tint: tuple = (1.0, 1.0, 1.0)  # Params.sky_tint
-    from_plate: bool = False  # Params.sky_from_plate
-    lean: float = 0.0  # the whole map's share of the plate mean (fill.SAFE_LEAN, or 0)
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> np.ndarray:
@@ -371,15 +366,6 @@ def _clamped(layout, size, width, height, intrinsics, params):
     return position.reshape(shape + (2,)), angle, inside, None, band, (start, stop), cols
 
 
-def _lean(params, intrinsics, height, width) -> float:
-    """Params.sky_from_plate's safe fall-back: SAFE_LEAN where over SAFE_GROUND_SHARE of the
-    plate's rows see no sky (`fill.sky_in_view`), else 0."""
-    if not params.sky_from_plate or params.up is None:
-        return 0.0
-    ground = 1.0 - sky_in_view(intrinsics, width, height, params.up)
-    return SAFE_LEAN if ground > SAFE_GROUND_SHARE else 0.0
-
-
 def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, directions):
     """The camera view's fill (fill.py): (its Fill, computed per frame on mip `level` into the
     rows from `base`; fill_texels: a lat-long's steps and side weights, read by
@@ -408,8 +394,6 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
         sky_share(sides) if params.up is not None else None,
         params.sky_gain,
         params.sky_tint,
-        params.sky_from_plate,
-        _lean(params, intrinsics, *shapes[0]),
     )
     _frozen(bins, window, counts)
     # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
