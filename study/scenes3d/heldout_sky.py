@@ -26,6 +26,8 @@ import numpy as np
 
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
+from virtual_reflections.methods import SKY_GAINS
+from virtual_reflections.params import Params
 
 from ..evaluate.metrics import psnr, to_display
 from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
@@ -124,6 +126,9 @@ def load(out, record) -> dict:
     part = f - d
     strong = part.sum(-1) > 0.02
     today = np.median(part[strong], axis=0) if strong.sum() > 5 else np.full(3, 1e-3)
+    band = record.get("split", {}).get("band")
+    if band and record.get("surroundings", "AUTO") == "AUTO":
+        today = np.full(3, prior_as_set(band))  # the prior the engine set, not its median
     k = mask[y0:y1, x0:x1]
     return {
         "name": name,
@@ -142,6 +147,16 @@ def load(out, record) -> dict:
         "base": psnr(to_display(m), to_display(t), k),
         "crop": (int(y0), int(y1), int(x0), int(x1)),  # of the full frame
     }
+
+
+def prior_as_set(band) -> float:
+    """The Auto prior's level as the engine set it (neutral): SKY_GAINS["auto"] times the
+    ground band's level at Params.fill_energy (`fill.prior_level`: the log-average brightened
+    toward the mean), from the record's `prior_level.band_levels`. The median of the prior's
+    rendered part (used before) is lower where few mirror pixels see the prior fully (Suzanne,
+    the cars: down to 0.4 of it), which scaled every absolute level's colour up there."""
+    e = Params().fill_energy
+    return SKY_GAINS["auto"] * band["log_average"] ** (1 - e) * band["mean"] ** e
 
 
 LEVELS = {

@@ -92,3 +92,29 @@ def test_the_camera_views_structure_is_levelled_to_the_estimate():
     assert np.allclose(got[~sky], d["full"][~sky])  # below the sky: untouched
     half = heldout_sky.composite(d, 1.0, "today's level", "plate mean", 0.0, 0.0, 0.5)
     assert np.allclose(half, 0.5 * (got + d["full"]))
+
+
+def test_todays_prior_is_the_level_the_engine_sets():
+    """heldout_sky.prior_as_set (the prior each estimate is scaled from) is the Auto map's
+    own sky straight up, from the study's band levels of the same plate (a camera 30 degrees
+    down: no sky in view)."""
+    import math
+
+    from study.scenes3d import prior_level
+    from virtual_reflections import Params, lookup_table
+    from virtual_reflections.envmap import apply_table
+    from virtual_reflections.layouts import texel_directions
+
+    w, h, hfov, pitch = 160, 90, 60.0, 30.0
+    f = 0.5 * w / math.tan(math.radians(hfov / 2))
+    a = math.radians(pitch)
+    up = (0.0, math.cos(a), -math.sin(a))
+    rng = np.random.default_rng(2)
+    plate = (0.05 + 0.4 * rng.random((h, w, 3)) ** 3).astype(np.float32)  # a skewed ground
+    params = Params(method="camera", intrinsics=(f, f, w / 2, h / 2), up=up)
+    env = apply_table(lookup_table(w, h, (60, 30, 100, 60), params, "latlong", 256), plate)
+    d = texel_directions("latlong", 256)
+    sky = env[d @ np.array(up) > math.cos(math.radians(10))].mean(0)
+    band = prior_level.band_levels(plate, hfov, pitch)
+    assert float(sky.mean()) == pytest.approx(heldout_sky.prior_as_set(band), rel=0.02)
+    assert band["log_average"] < heldout_sky.prior_as_set(band) / 1.6 < band["mean"]
