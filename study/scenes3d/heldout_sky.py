@@ -68,7 +68,7 @@ def render(out, log=print) -> None:
 
     try:
         for name, split in (("records.jsonl", True), ("camera.jsonl", False)):
-            done = {r["scene"]["name"] for r in _records(out, name)}
+            done = {r["scene"]["name"] for r in read_records(out, name)}
             if not split:  # the same scene, Generate with Camera View, its render so named
                 addon.generate.generate = camera_view
                 run.default_method_label = lambda _addon: CAMERA_VIEW
@@ -87,7 +87,7 @@ def render(out, log=print) -> None:
         addon.close()
 
 
-def _records(out, name="records.jsonl") -> list:
+def read_records(out, name="records.jsonl") -> list:
     path = pathlib.Path(out) / name
     if not path.is_file():
         return []
@@ -191,7 +191,7 @@ def composite(d, gain, level, colour, tau, fallback, structure=0.0):
     return (1 - fallback) * sky + fallback * d["mean"]
 
 
-def _grid(levels, colours, taus, fallbacks, structures=(0.0,)):
+def grid_of(levels, colours, taus, fallbacks, structures=(0.0,)):
     return [
         (g, lv, c, t, w, s) for g in GAINS for lv in levels for c in colours for t in taus
         for w in fallbacks for s in structures
@@ -199,22 +199,24 @@ def _grid(levels, colours, taus, fallbacks, structures=(0.0,)):
 
 
 FAMILIES = {
-    "today's level × g, neutral (the default's form)": _grid(
+    "today's level × g, neutral (the default's form)": grid_of(
         ["today's level"], ["plate mean"], [0.0], [0.0]
     ),
-    "today's level × g, tinted toward the plate mean": _grid(
+    "today's level × g, tinted toward the plate mean": grid_of(
         ["today's level"], ["plate mean"], TAUS, [0.0]
     ),
-    "today's level × g, tinted toward the top rows": _grid(
+    "today's level × g, tinted toward the top rows": grid_of(
         ["today's level"], ["top rows"], TAUS, [0.0]
     ),
-    "the plate mean's level × g, tinted": _grid(["plate mean's level"], list(COLOURS), TAUS, [0.0]),
-    "the top rows' level × g, tinted": _grid(["top rows' level"], list(COLOURS), TAUS, [0.0]),
-    "any of these, constant fall-back w": _grid(list(LEVELS), list(COLOURS), TAUS, FALLBACKS),
-    "today's level × g, tinted, fall-back by disagreement": _grid(
+    "the plate mean's level × g, tinted": grid_of(
+        ["plate mean's level"], list(COLOURS), TAUS, [0.0]
+    ),
+    "the top rows' level × g, tinted": grid_of(["top rows' level"], list(COLOURS), TAUS, [0.0]),
+    "any of these, constant fall-back w": grid_of(list(LEVELS), list(COLOURS), TAUS, FALLBACKS),
+    "today's level × g, tinted, fall-back by disagreement": grid_of(
         ["today's level"], ["plate mean"], TAUS, BETAS
     ),
-    "the camera view's structure, levelled to today's or the plate mean's level × g": _grid(
+    "the camera view's structure, levelled to today's or the plate mean's level × g": grid_of(
         ["today's level", "plate mean's level"], ["plate mean"], TAUS, [0.0], STRUCTURES
     ),
 }
@@ -240,13 +242,13 @@ def loho(scores, groups, columns, safe=False):
     return held, chosen
 
 
-def _line(name, v):
+def table_line(name, v):
     return f"| {name} | {v.mean():+.2f} dB, {(v > 0).sum()}/{len(v)}, worst {v.min():+.2f} |"
 
 
 def fit(out, safe=False, groups=False, flip=False, log=print) -> dict:
     """Score every family held out by HDRI on OUT's renders; prints the tables."""
-    data = [load(out, r) for r in _records(out)]
+    data = [load(out, r) for r in read_records(out)]
     params = sorted({p for family in FAMILIES.values() for p in family}, key=str)
     index = {p: i for i, p in enumerate(params)}
     scores = np.array(
@@ -263,12 +265,12 @@ def fit(out, safe=False, groups=False, flip=False, log=print) -> dict:
     log(f"{len(data)} scenes, {len(set(hdris))} HDRIs; mirror PSNR over the plate mean")
     log("| the unseen sky | mean, ahead, worst scene |")
     log("|---|---|")
-    log(_line("the default (Auto; fitted on Blender's HDRIs: not held out there)", default))
+    log(table_line("the default (Auto; fitted on Blender's HDRIs: not held out there)", default))
     results = {}
     for name, family in FAMILIES.items():
         held, chosen = loho(scores, hdris, [index[p] for p in family], safe)
         results[name] = (held, [params[c] for c in chosen])
-        log(_line(name, held))
+        log(table_line(name, held))
         picked = sorted({(round(params[c][0], 2), *params[c][1:]) for c in chosen}, key=str)
         log(f"|   fitted per held-out HDRI: {picked} | |")
     if groups:
@@ -278,7 +280,7 @@ def fit(out, safe=False, groups=False, flip=False, log=print) -> dict:
             "Poly Haven": ~np.isin(hdris, (*BLENDERS, *scenes.HELD_OUT)),
         }
         for name, v in {"the default": default, **{k: r[0] for k, r in results.items()}}.items():
-            cells = ", ".join(f"{s} {_line('', v[m])[5:-2]}" for s, m in sets.items())
+            cells = ", ".join(f"{s} {table_line('', v[m])[5:-2]}" for s, m in sets.items())
             log(f"{name}: {cells}")
     if flip:
         for name, (_, chosen) in [("the default", (None, None)), *results.items()]:

@@ -63,11 +63,11 @@ def base_columns(data, retrieved=False):
     sky_retrieval's (their constants fitted with the fall-back)."""
     grids = {
         "the default (its gain NOT held out on Blender's six)": [None],
-        "today's level × g, tinted": hs._grid(["today's level"], ["plate mean"], hs.TAUS, [0.0]),
-        "the plate mean's level × g, tinted": hs._grid(
+        "today's level × g, tinted": hs.grid_of(["today's level"], ["plate mean"], hs.TAUS, [0.0]),
+        "the plate mean's level × g, tinted": hs.grid_of(
             ["plate mean's level"], ["plate mean"], hs.TAUS, [0.0]
         ),
-        "the camera view's structure, levelled × g, tinted": hs._grid(
+        "the camera view's structure, levelled × g, tinted": hs.grid_of(
             ["today's level", "plate mean's level"], ["plate mean"], hs.TAUS, [0.0], [0.25, 0.5]
         ),
     }
@@ -146,7 +146,7 @@ def fit_fallback(scores, cue_values, groups, safe=False, fixed=None):
 
 
 def fit(out, safe=False, nested=False, log=print) -> dict:
-    records = hs._records(out)
+    records = hs.read_records(out)
     data = [hs.load(out, r) for r in records]
     for d in data:
         folder = next(p for p in (pathlib.Path(out) / "cache").glob(f"{d['name']}-*"))
@@ -183,8 +183,8 @@ def fit(out, safe=False, nested=False, log=print) -> dict:
             fixed = None
         held, chosen, leaned = fit_fallback(scores, cue_values, groups, safe, fixed)
         results[name] = held
-        log(hs._line(f"{name}, no fall-back", plain) + " |")
-        log(hs._line(f"{name}, + fall-back ({how})", held) + f" {leaned.sum()} |")
+        log(hs.table_line(f"{name}, no fall-back", plain) + " |")
+        log(hs.table_line(f"{name}, + fall-back ({how})", held) + f" {leaned.sum()} |")
         picks = sorted({(names[c], s, round(float(t), 2), SHARES[k]) for _, c, s, t, k in chosen})
         log(f"|   fitted per held-out HDRI (cue, side, threshold, W): {picks} | | |")
         log("|   worst held out: " + ", ".join(
@@ -192,7 +192,7 @@ def fit(out, safe=False, nested=False, log=print) -> dict:
         )  # fmt: skip
         for c, cue in enumerate(names):  # one cue alone
             one, _, leaned = fit_fallback(scores, cue_values[:, [c]], groups, safe, fixed)
-            log(hs._line(f"  {cue} alone", one) + f" {leaned.sum()} |")
+            log(hs.table_line(f"  {cue} alone", one) + f" {leaned.sum()} |")
     return results
 
 
@@ -216,7 +216,7 @@ def render_fresh(out, log=print) -> None:
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    done = {r["scene"]["name"] for r in hs._records(out)}
+    done = {r["scene"]["name"] for r in hs.read_records(out)}
     addon = run.Addon()
     try:
         with open(out / "records.jsonl", "a") as records:
@@ -234,7 +234,7 @@ def render_fresh(out, log=print) -> None:
 
 
 def _data(out):
-    records = hs._records(out)
+    records = hs.read_records(out)
     data = [hs.load(out, r) for r in records]
     for d in data:
         folder = next(p for p in (pathlib.Path(out) / "cache").glob(f"{d['name']}-*"))
@@ -256,7 +256,7 @@ def confirm(out, fresh, log=print) -> None:
     cues_padded = np.concatenate((cue_values, cue_values[:1]), 0)
     _, chosen, _ = fit_fallback(padded, cues_padded, fake, True, fixed)
     j, c, side, t, k = chosen[-1]
-    names = list(cues(data[0], hs._records(out)[0]))
+    names = list(cues(data[0], hs.read_records(out)[0]))
     log(f"fitted on all {len(data)}: {params[j]}, lean {SHARES[k]} where {names[c]} "
         f"{'>' if side > 0 else '<'} {t:.3f}")  # fmt: skip
     new, new_cues = _data(fresh)
@@ -269,8 +269,8 @@ def confirm(out, fresh, log=print) -> None:
         default.append(psnr(to_display(d["full"]), truth, d["mask"]) - d["base"])
         log(f"{d['name']}: default {default[-1]:+.2f}, chosen {ours[-1]:+.2f}"
             f"{' (leaned)' if lean else ''}")  # fmt: skip
-    log(hs._line("the default on the fresh scenes", np.array(default)))
-    log(hs._line("the chosen estimate + fall-back, fitted on all 50", np.array(ours)))
+    log(hs.table_line("the default on the fresh scenes", np.array(default)))
+    log(hs.table_line("the chosen estimate + fall-back, fitted on all 50", np.array(ours)))
 
 
 def main(argv=None) -> int:

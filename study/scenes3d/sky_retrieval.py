@@ -138,7 +138,7 @@ def grid():
 
 def fit(out, safe=False, log=print):
     hdris = blender_hdris()
-    data = [hs.load(out, r) for r in hs._records(out)]
+    data = [hs.load(out, r) for r in hs.read_records(out)]
     for d in data:
         attach(out, d, hdris)
     params = grid()
@@ -169,7 +169,7 @@ def fit(out, safe=False, log=print):
     for name, columns in families.items():
         held, chosen = hs.loho(scores, groups, columns, safe)
         results[name] = held
-        log(hs._line(name, held))
+        log(hs.table_line(name, held))
         picked = sorted({(round(params[c][0], 2), *params[c][1:]) for c in chosen}, key=str)
         log(f"|   fitted per held-out HDRI: {picked} | |")
         log("|   worst held out: " + ", ".join(
@@ -180,7 +180,10 @@ def fit(out, safe=False, log=print):
             "Blender's HDRIs (20)": np.isin(groups, list(hdris)),
             "Poly Haven (30)": ~np.isin(groups, list(hdris)),
         }
-        log(f"{name}: " + ", ".join(f"{s} {hs._line('', held[m])[5:-2]}" for s, m in sets.items()))
+        log(
+            f"{name}: "
+            + ", ".join(f"{s} {hs.table_line('', held[m])[5:-2]}" for s, m in sets.items())
+        )
     return results
 
 
