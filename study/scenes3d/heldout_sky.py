@@ -53,8 +53,8 @@ def specs() -> list:
 def render(out, log=print) -> None:
     """Render every scene of `specs` (bpy) into OUT (cache/, work/) and append its record to
     OUT/records.jsonl (the default's mirror with ``split``), then the camera view's mirror
-    (OUT/work/<scene> Camera View.exr, its record in OUT/camera.jsonl); a scene already
-    recorded is skipped."""
+    ("<scene> Camera View.exr" in OUT's work folder, its record in OUT/camera.jsonl); a scene
+    already recorded is skipped."""
     from . import mirror, run
 
     out = pathlib.Path(out)
