@@ -49,6 +49,7 @@ GROUND_KIND = "ground"
 PREFIX = "VR "  # every node this module adds is named with it
 
 _NODE_GROUPS = "compositing_node_group" in bpy.types.Scene.bl_rna.properties  # 5.0+
+_API = "compositing_node_group" if _NODE_GROUPS else "node_tree"  # the record's name for it
 
 # The view settings that give an sRGB plate's codes back: (settings, property, value). Only the
 # properties this Blender has are touched (white balance is 4.2+).
@@ -92,7 +93,7 @@ def setup_from_plate(scene, image, ground=False, lens=False, view=True) -> dict:
     render = scene.render
     record = {
         "version": 1,
-        "api": "compositing_node_group" if _NODE_GROUPS else "node_tree",
+        "api": _API,
         "image": image.name,
         "resolution": [render.resolution_x, render.resolution_y, render.resolution_percentage],
         "pixel_aspect": [render.pixel_aspect_x, render.pixel_aspect_y],
@@ -112,10 +113,7 @@ def setup_from_plate(scene, image, ground=False, lens=False, view=True) -> dict:
         record["resolution"][1] * record["pixel_aspect"][1],
     )
     record["advice"] = camera_match.advice(image, framed, record["lens"]) + eevee_advice(scene)
-    if _NODE_GROUPS:
-        record["compositor"] = _setup_group(scene, image)
-    else:
-        record["compositor"] = _setup_tree(scene, image)
+    record["compositor"] = _setup_compositor(scene, image)
     scene[RECORD] = json.dumps(record)
     return record
 
@@ -128,11 +126,10 @@ def plate_for_batch(scene, image) -> dict:
 
     The record keeps what the scene was before the artist's Set Up, so Undo Plate Set-Up in
     a file the batch saved still goes back to that."""
-    api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
     if RECORD not in scene:
         return setup_from_plate(scene, image, view=False)
     record = json.loads(scene[RECORD])
-    if record["api"] != api:  # set up under the other compositor API: do it again here
+    if record["api"] != _API:  # set up under the other compositor API: do it again here
         kept = {key: record.get(key) for key in ("ground", "view", "lens")}
         record.update(ground=None, view={}, lens=None)  # the undo below must not touch them
         scene[RECORD] = json.dumps(record)
@@ -142,20 +139,14 @@ def plate_for_batch(scene, image) -> dict:
         return record
     camera = record["camera"]
     _undo_background(camera, record["image"])
-    if _NODE_GROUPS:
-        _undo_group(scene, record["compositor"])
-    else:
-        _undo_tree(scene, record["compositor"])
+    _undo_compositor(scene, record["compositor"])
     width, height = plate.size(image)
     scene.render.resolution_x, scene.render.resolution_y = width, height
     record["image"] = image.name
     record["camera"] = _show_background(scene.camera, image)
     if camera is not None and record["camera"] is not None:  # what the artist had before
         record["camera"]["show_background_images"] = camera["show_background_images"]
-    if _NODE_GROUPS:
-        record["compositor"] = _setup_group(scene, image)
-    else:
-        record["compositor"] = _setup_tree(scene, image)
+    record["compositor"] = _setup_compositor(scene, image)
     scene[RECORD] = json.dumps(record)
     return record
 
@@ -180,14 +171,23 @@ def undo_setup_from_plate(scene) -> bool:
     _undo_background(record["camera"], record["image"])
     _remove_ground(record.get("ground"))
     camera_match.undo_lens(record.get("lens"), bpy.data.cameras)
-    api = "compositing_node_group" if _NODE_GROUPS else "node_tree"
-    if record["api"] == api:
-        if _NODE_GROUPS:
-            _undo_group(scene, record["compositor"])
-        else:
-            _undo_tree(scene, record["compositor"])
+    if record["api"] == _API:
+        _undo_compositor(scene, record["compositor"])
     del scene[RECORD]
     return True
+
+
+def _setup_compositor(scene, image) -> dict:
+    """The render over the plate in this Blender's compositor API; returns its record."""
+    return _setup_group(scene, image) if _NODE_GROUPS else _setup_tree(scene, image)
+
+
+def _undo_compositor(scene, record) -> None:
+    """Undo `_setup_compositor` (a record of this Blender's API)."""
+    if _NODE_GROUPS:
+        _undo_group(scene, record)
+    else:
+        _undo_tree(scene, record)
 
 
 def _neutral_view(scene):

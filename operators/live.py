@@ -33,7 +33,7 @@ import bpy
 from ..virtual_reflections import methods
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
-from . import maps, pipeline, plate, previews, shading, world_probe
+from . import app_handlers, maps, pipeline, plate, previews, shading, world_probe
 from .choices import map_width
 
 MOVING_WIDTH = 256  # map width while the object moves
@@ -415,9 +415,7 @@ def _sync_soon():
 
 
 def register():
-    for name, function in _FILE_HANDLERS:
-        if function not in getattr(bpy.app.handlers, name):
-            getattr(bpy.app.handlers, name).append(function)
+    app_handlers.add(_FILE_HANDLERS)
     if not bpy.app.timers.is_registered(_sync_soon):
         bpy.app.timers.register(_sync_soon, first_interval=0.0, persistent=True)
 
@@ -426,7 +424,4 @@ def unregister():
     if bpy.app.timers.is_registered(_sync_soon):
         bpy.app.timers.unregister(_sync_soon)
     disable()
-    for name, function in _FILE_HANDLERS:
-        handlers = getattr(bpy.app.handlers, name)
-        while function in handlers:
-            handlers.remove(function)
+    app_handlers.remove(_FILE_HANDLERS)

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..virtual_reflections.atomic_files import ImageError
 from ..virtual_reflections.imagefiles import write_map
-from . import images, undo_pixels
+from . import app_handlers, images, undo_pixels
 from .choices import addon_preferences
 
 KIND = "map"  # images.CREATED value of maps
@@ -283,12 +283,8 @@ _HANDLERS = (("save_pre", _pack_before_save), ("load_post", _say_missing_after_l
 
 
 def register():
-    for name, function in _HANDLERS:
-        if function not in getattr(bpy.app.handlers, name):
-            getattr(bpy.app.handlers, name).append(function)
+    app_handlers.add(_HANDLERS)
 
 
 def unregister():
-    for name, function in _HANDLERS:
-        while function in getattr(bpy.app.handlers, name):
-            getattr(bpy.app.handlers, name).remove(function)
+    app_handlers.remove(_HANDLERS)

@@ -42,6 +42,7 @@ file opens.
 import bpy
 
 from ..virtual_reflections.methods import COMBINE_NAMES, WHOLE_SURFACE_LOOKS
+from . import app_handlers
 from .ground_nodes import occluder
 from .images import CREATED, check_local
 from .nodes import USE_NODES_DEPRECATED, new_node
@@ -457,12 +458,8 @@ _HANDLERS = (("save_pre", _keep_override_settings), ("load_post", _restore_overr
 
 
 def register():
-    for name, function in _HANDLERS:
-        if function not in getattr(bpy.app.handlers, name):
-            getattr(bpy.app.handlers, name).append(function)
+    app_handlers.add(_HANDLERS)
 
 
 def unregister():
-    for name, function in _HANDLERS:
-        while function in getattr(bpy.app.handlers, name):
-            getattr(bpy.app.handlers, name).remove(function)
+    app_handlers.remove(_HANDLERS)
