@@ -45,6 +45,7 @@ MAX_RUNS = 64
 # the runs, less the padding of every run to whole rows of ROW.
 MAX_TEXELS = ROW * MAX_ROWS - MAX_RUNS * (ROW - 1)
 BLOCK = 32768  # texels per block of NumPy work (8192 was 15-25 % slower: more Python per tap)
+STEP = 8 * BLOCK  # texels per block of `trilinear_samples`' work (its keys and places)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,14 +106,43 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
     # that do not (share 0: magnified, lod clipped to 0): their runs are one bilinear sample.
     # Worked in blocks of the map over the cores: each block's keys and counts, then each
     # texel's row in the runs (in map order within a run: reads stay local).
+    key, share, counts_per = _classify(lod, top, keys)
+    counts = counts_per.sum(0)
+    # Each run padded to whole rows of ROW texels; per key its first row in the runs, and
+    # per block where its texels of each key start.
+    padded = -(-counts // ROW) * ROW
+    first = np.concatenate(([0], np.cumsum(padded)[:-1]))
+    starts_per = first + np.cumsum(counts_per, axis=0) - counts_per  # (blocks, keys)
+    x = np.empty(int(padded.sum()), np.float32)
+    y = np.empty(x.size, np.float32)
+    upper = np.zeros(x.size, np.float16)
+    for k in np.flatnonzero(padded - counts):  # padding: pixel (0, 0) of the level, share 0
+        x[first[k] + counts[k] : first[k] + padded[k]] = 1.0
+        y[first[k] + counts[k] : first[k] + padded[k]] = 1.0
+    rank = _place(px, py, key, share, counts_per, starts_per, (x, y, upper))
+    used = np.flatnonzero(counts)
+    levels = [int(run) // 2 for run in used]
+    singles = [bool(run % 2) for run in used]
+    starts = [0, *(int(v) for v in (first + padded)[used])]
+    if starts[-1] > ROW * MAX_ROWS:
+        raise ValueError(f"{total} texels: more than this table's compact form holds")
+    rank = rank.reshape(tuple(shape) + (2,))
+    for array in (x, y, upper, rank):
+        array.flags.writeable = False
+    return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
+
+
+def _classify(lod, top: int, keys: int):
+    """Each texel's run key (2 x its lower level, + 1 when it reads that level alone) (T,)
+    uint8, its share of the next level (T,) float16, and per block of STEP texels the count
+    of each key (blocks, keys) int64."""
+    total = lod.size
     key = np.empty(total, np.uint8)
     share = np.empty(total, np.float16)
-    step = 8 * BLOCK
-    blocks = -(-total // step)
-    counts_per = np.zeros((blocks, keys), np.int64)
+    counts_per = np.zeros((-(-total // STEP), keys), np.int64)
 
     def classify(i):
-        a, b = i * step, min((i + 1) * step, total)
+        a, b = i * STEP, min((i + 1) * STEP, total)
         lo = np.minimum(lod[a:b].astype(np.int32), max(top - 1, 0))
         frac = lod[a:b] - lo.astype(np.float32)
         np.maximum(frac, 0.0, out=frac)  # (np.clip's own loop is ~5x slower)
@@ -125,24 +155,21 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
         key[a:b] = lo
         counts_per[i] = _counts(key[a:b], keys)
 
-    _each(classify, blocks)
-    counts = counts_per.sum(0)
-    # Each run padded to whole rows of ROW texels; per key its first row in the runs, and
-    # per block where its texels of each key start.
-    padded = -(-counts // ROW) * ROW
-    first = np.concatenate(([0], np.cumsum(padded)[:-1]))
-    starts_per = first + np.cumsum(counts_per, axis=0) - counts_per  # (blocks, keys)
+    _each(classify, counts_per.shape[0])
+    return key, share, counts_per
+
+
+def _place(px, py, key, share, counts_per, starts_per, runs) -> np.ndarray:
+    """Write each texel's sample into `runs` (x, y, upper) at its row of its key's run (from
+    `starts_per`, (blocks, keys)); returns each texel's row as (rank, row // ROW) (T, 2) int16."""
+    x, y, upper = runs
+    total = key.size
+    blocks, keys = counts_per.shape
     scales = (2.0 ** -(np.arange(keys) // 2)).astype(np.float32)
-    x = np.empty(int(padded.sum()), np.float32)
-    y = np.empty(x.size, np.float32)
-    upper = np.zeros(x.size, np.float16)
-    for k in np.flatnonzero(padded - counts):  # padding: pixel (0, 0) of the level, share 0
-        x[first[k] + counts[k] : first[k] + padded[k]] = 1.0
-        y[first[k] + counts[k] : first[k] + padded[k]] = 1.0
     rank = np.empty((total, 2), np.int16)
 
     def place(i):
-        a, b = i * step, min((i + 1) * step, total)
+        a, b = i * STEP, min((i + 1) * STEP, total)
         k = key[a:b]
         present = np.flatnonzero(counts_per[i])
         row = np.empty(b - a, np.int32)  # each texel's row of the runs, in map order
@@ -167,16 +194,7 @@ def trilinear_samples(px, py, lod, top: int, shape) -> Trilinear:
         np.right_shift(row, ROW.bit_length() - 1, out=rank[a:b, 1], casting="unsafe")
 
     _each(place, blocks)
-    used = np.flatnonzero(counts)
-    levels = [int(run) // 2 for run in used]
-    singles = [bool(run % 2) for run in used]
-    starts = [0, *(int(v) for v in (first + padded)[used])]
-    if starts[-1] > ROW * MAX_ROWS:
-        raise ValueError(f"{total} texels: more than this table's compact form holds")
-    rank = rank.reshape(tuple(shape) + (2,))
-    for array in (x, y, upper, rank):
-        array.flags.writeable = False
-    return Trilinear(tuple(levels), tuple(starts), x, y, upper, rank, tuple(singles))
+    return rank
 
 
 def _counts(key: np.ndarray, keys: int) -> np.ndarray:
