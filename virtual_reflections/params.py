@@ -12,10 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .methods import (
+    AUTO_SKY_GAIN,
+    AUTO_SKY_TINT,
     MAX_TRIANGLES,
     METHOD_ALIASES,
     METHOD_NAMES,
     SKY_GAINS,
+    SKY_SOURCES,
     reads_ground,
     uses_camera,
 )
@@ -60,6 +63,35 @@ def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None)
     logs = [math.log(v) for _, v in knots]
     base = SKY_GAINS[kind] if custom is None else float(custom)
     return min(base * math.exp(float(np.interp(r, xs, logs))), MAX_SKY_GAIN)
+
+
+def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None) -> dict:
+    """Params' sky prior fields for named surroundings, seen by a surface of a given roughness.
+
+    Auto takes the photo's own mean colour (``sky_source`` "plate", AUTO_SKY_GAIN, its hue
+    AUTO_SKY_TINT of the way from grey); the others the ground near the horizon
+    (`sky_gain_for`). A rough surface's map takes a brighter sky by ROUGH_SKY_RATIOS[kind].
+
+    Parameters
+    ----------
+    kind : str
+        As for `sky_gain_for`.
+    roughness : float, optional
+        As for `sky_gain_for`.
+    custom : float, optional
+        As for `sky_gain_for` (the prior is then the ground's).
+
+    Returns
+    -------
+    dict
+        ``sky_gain``, ``sky_source`` and ``sky_tint_share``, to pass to `Params`.
+    """
+    if kind != "auto" or custom is not None:
+        gain = sky_gain_for(kind, roughness, custom)
+        return {"sky_gain": gain, "sky_source": "ground", "sky_tint_share": 0.0}
+    ratio = sky_gain_for("auto", roughness) / SKY_GAINS["auto"]
+    gain = min(AUTO_SKY_GAIN * ratio, MAX_SKY_GAIN)
+    return {"sky_gain": gain, "sky_source": "plate", "sky_tint_share": AUTO_SKY_TINT}
 
 
 @dataclass(frozen=True)
@@ -117,12 +149,18 @@ class Params:
         The world's up (the ground's normal), needed by the ground method: unseen directions
         are then filled by elevation above the world's horizon, not the camera's.
     sky_gain : float
-        With `up`: how many times brighter than the plate's ground (its band 5-40 degrees below
-        the horizon, fill.prior_level) the sky is taken to be where the plate does not show it
-        (fill.sky_share), 0..MAX_SKY_GAIN; default SKY_GAINS["auto"] (docs/ground.md).
+        With `up`: how many times brighter than `sky_source` the sky is taken to be where the
+        plate does not show it (fill.sky_share), 0..MAX_SKY_GAIN; default Auto's,
+        AUTO_SKY_GAIN (`sky_prior_for`; docs/ground.md).
     sky_tint : (r, g, b)
         The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
         neutral (the add-on's, but for Surroundings Custom).
+    sky_source : {"plate", "ground"}
+        What the prior's level is taken from: "plate", the whole plate's mean colour (each
+        pixel clipped at 1); "ground", the plate's ground in a band 5-40 degrees below the
+        horizon (fill.prior_level).
+    sky_tint_share : float
+        With "plate": how far the prior's hue goes from grey to the plate's mean hue, 0..1.
     """
 
     enlarge: float = 0.075
@@ -141,8 +179,10 @@ class Params:
     fill_energy: float = 0.5
     ground: tuple | None = None
     up: tuple | None = None
-    sky_gain: float = SKY_GAINS["auto"]
+    sky_gain: float = AUTO_SKY_GAIN
     sky_tint: tuple = (1.0, 1.0, 1.0)
+    sky_source: str = "plate"
+    sky_tint_share: float = AUTO_SKY_TINT
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -189,6 +229,11 @@ class Params:
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
             raise ValueError(f"sky_gain must be 0..{MAX_SKY_GAIN:g}, got {self.sky_gain}")
+        if self.sky_source not in SKY_SOURCES:
+            names = ", ".join(SKY_SOURCES)
+            raise ValueError(f"sky_source must be one of {names}, got {self.sky_source!r}")
+        if not (math.isfinite(self.sky_tint_share) and 0.0 <= self.sky_tint_share <= 1.0):
+            raise ValueError(f"sky_tint_share must be 0..1, got {self.sky_tint_share}")
         tint = tuple(float(v) for v in self.sky_tint)
         object.__setattr__(self, "sky_tint", tint)
         if len(tint) != 3 or not all(math.isfinite(v) and v >= 0 for v in tint) or max(tint) <= 0:

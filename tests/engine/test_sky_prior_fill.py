@@ -11,7 +11,14 @@ from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.fill import sky_in_view
 from virtual_reflections.layouts import texel_directions
-from virtual_reflections.params import ROUGH_SKY_RATIOS, SKY_GAINS, sky_gain_for
+from virtual_reflections.params import (
+    AUTO_SKY_GAIN,
+    AUTO_SKY_TINT,
+    ROUGH_SKY_RATIOS,
+    SKY_GAINS,
+    sky_gain_for,
+    sky_prior_for,
+)
 
 W, H = 160, 90
 F = 0.5 * W / math.tan(math.radians(30))  # 60 degrees across, 36 high
@@ -55,7 +62,9 @@ def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
     box = (60, 30, 100, 60)
     sky, ahead = {}, {}
     for kind, gain in SKY_GAINS.items():
-        params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_gain=gain)
+        params = Params(
+            method="camera", intrinsics=INTRINSICS, up=up, sky_gain=gain, sky_source="ground"
+        )
         env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
         d = texel_directions("latlong", env.shape[1])
         sky[kind] = env[d @ np.array(up) > math.cos(math.radians(15))].mean(0)
@@ -80,7 +89,9 @@ def test_a_tinted_sky_keeps_its_luminance_and_the_ground():
     tint = (0.4, 0.6, 1.0)  # a blue sky
     maps = {}
     for colour in ((1.0, 1.0, 1.0), tint):
-        params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_tint=colour)
+        params = Params(
+            method="camera", intrinsics=INTRINSICS, up=up, sky_tint=colour, sky_source="ground"
+        )
         maps[colour] = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
     d = texel_directions("latlong", 256)
     top = d @ np.array(up) > math.cos(math.radians(15))
@@ -120,8 +131,70 @@ def test_a_plate_without_ground_is_the_sky_itself():
     box = (60, 30, 100, 60)
     for pitch, expected in ((-25.0, 0.3), (30.0, 0.3 * SKY_GAINS["auto"])):
         up = up_when_pitched(pitch)
-        params = Params(method="camera", intrinsics=INTRINSICS, up=up, sky_gain=SKY_GAINS["auto"])
+        params = Params(
+            method="camera",
+            intrinsics=INTRINSICS,
+            up=up,
+            sky_gain=SKY_GAINS["auto"],
+            sky_source="ground",
+        )
         env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
         d = texel_directions("latlong", env.shape[1])
         straight_up = d @ np.array(up) > math.cos(math.radians(15))  # far above the frame
         assert env[straight_up].mean() == pytest.approx(expected, rel=0.02), pitch
+
+
+def _straight_up(plate, **fields):
+    up = up_when_pitched(30.0)
+    params = Params(method="camera", intrinsics=INTRINSICS, up=up, **fields)
+    env = apply_table(lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256), plate)
+    d = texel_directions("latlong", env.shape[1])
+    return env[d @ np.array(up) > math.cos(math.radians(15))].mean(0)
+
+
+def test_auto_takes_the_plate_mean_colour_brightened_and_half_way_to_its_hue():
+    """Auto (Params' defaults, sky_source "plate"): straight up, the unseen sky is AUTO_SKY_GAIN
+    times the plate's mean luminance, its hue AUTO_SKY_TINT of the way from grey to the
+    plate's; a sky_tint_share of 0 is grey, 1 the plate's own hue."""
+    rng = np.random.default_rng(5)
+    plate = (0.1 + 0.05 * rng.random((H, W, 3))).astype(np.float32)
+    plate[: H // 3] = (0.3, 0.45, 0.8)  # a blue band at the top, a dark ground below
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    mean = plate.reshape(-1, 3).mean(0, dtype=np.float64)
+    level, hue = float(mean @ luma), mean / float(mean @ luma)
+    for share in (AUTO_SKY_TINT, 0.0, 1.0):
+        sky = _straight_up(plate, sky_tint_share=share)
+        expected = AUTO_SKY_GAIN * level * ((1 - share) + share * hue)
+        np.testing.assert_allclose(sky, expected, rtol=0.02, err_msg=str(share))
+    assert _straight_up(plate)[2] > _straight_up(plate)[0]  # blue, as the plate
+
+
+def test_a_sun_in_an_hdr_plate_counts_as_white_in_autos_sky():
+    """A 4 x 4 sun at 5000 in a scene-linear plate: each pixel is clipped at 1 before the
+    mean, so Auto's sky barely moves (the unclipped mean would be 28 times brighter)."""
+    plate = np.full((H, W, 3), 0.2, np.float32)
+    calm = _straight_up(plate)
+    plate[10:14, 20:24] = 5000.0
+    assert plate.mean() > 20 * 0.2
+    np.testing.assert_allclose(_straight_up(plate), calm, rtol=0.01)
+
+
+def test_the_sky_prior_for_each_surroundings():
+    """`sky_prior_for`: Auto the plate's colour at AUTO_SKY_GAIN (brighter for a rough surface
+    by Auto's ratio); Open, Enclosed and Custom the ground's, neutral, at sky_gain_for's."""
+    assert sky_prior_for("auto") == {
+        "sky_gain": AUTO_SKY_GAIN, "sky_source": "plate", "sky_tint_share": AUTO_SKY_TINT
+    }  # fmt: skip
+    ratio = sky_gain_for("auto", 0.35) / SKY_GAINS["auto"]
+    assert sky_prior_for("auto", 0.35)["sky_gain"] == pytest.approx(AUTO_SKY_GAIN * ratio)
+    for kind, custom in (("open", None), ("enclosed", None), ("custom", 2.5)):
+        prior = sky_prior_for(kind, 0.2, custom)
+        assert prior == {
+            "sky_gain": sky_gain_for(kind, 0.2, custom), "sky_source": "ground",
+            "sky_tint_share": 0.0,
+        }  # fmt: skip
+        Params(**prior)  # valid
+    with pytest.raises(ValueError, match="sky_source must be one of plate, ground"):
+        Params(sky_source="sky")
+    with pytest.raises(ValueError, match="sky_tint_share must be 0..1"):
+        Params(sky_tint_share=1.5)
