@@ -10,36 +10,18 @@ pixels (origin top-left, y down, x1/y1 exclusive). Frames and layouts: see layou
 from __future__ import annotations
 
 import dataclasses
-import threading
 
 import numpy as np
 
-from .backends import backend, given, kernels, run
+from .backends import backend
 from .colour import clean_plate
-from .extension import apply as apply_extension
-from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values, prior_level
+from .fill import FILL_BINS, prior_level
+from .layers import Frame, scratch
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
-from .parallel import CHUNK, for_blocks
 from .params import Params
-from .supersample import gather as gather_supersample
 from .table import LookupTable, lookup_table
-from .taps import put_rows, weighted_sum
-from .trilinear import gather as gather_trilinear
 
 DEFAULT_SIZE = {"latlong": 1024, "cube": 512}
-
-_local = threading.local()
-
-
-def _scratch(name: str, shape: tuple) -> np.ndarray:
-    """A float32 buffer reused by the calling thread across applies and tables, so a new
-    frame or a new table does not pay for fresh memory (page faults) every time."""
-    pool = _local.__dict__.setdefault("pool", {})
-    size = int(np.prod(shape))
-    buf = pool.get(name)
-    if buf is None or buf.size < size:
-        buf = pool[name] = np.empty(size, np.float32)
-    return buf[:size].reshape(shape)
 
 
 def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None) -> np.ndarray:
@@ -72,81 +54,45 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             f"plate is {plate.shape[1]}x{plate.shape[0]}, table was built for "
             f"{seg.width}x{seg.height}"
         )
-    first = table.first_level
-    # With OpenCV or Numba, the paper's table reads level 0 from the plate itself (no
-    # border: their reads repeat the edge), so the pyramid need not copy it.
-    use = backend()
+    # With OpenCV or Numba, a table whose layers can read level 0 from the plate itself (no
+    # border: their reads repeat the edge) needs no copy of it in the pyramid.
     direct = (
-        first == 0
+        table.first_level == 0
         and table.levels > 1
-        and table.trilinear is not None
-        and table.index is None
-        and table.supersample is None
-        and not table.groups
-        and table.fill is None
-        and use != "numpy"
+        and table.reads_plate_level0()
+        and backend() != "numpy"
     )
-    if direct:
-        first = 1
+    first = 1 if direct else table.first_level
+    source, pyramid = _pyramid(table, plate, first, pyramids)
+    shapes = level_shapes(seg.height, seg.width, table.levels)
+    if table.fill is not None:
+        table.fill.write_profile(pyramid, shapes, first, source)
+    level0 = np.ascontiguousarray(plate, np.float32) if direct else None
+    offsets = level_offsets(shapes, first)
+    frame = Frame(plate, source, pyramid, shapes, offsets, table.shape, level0)
+    out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
+    for layer in table.layers:  # each over the ones before it
+        layer.write(frame, out)
+    return out.reshape(table.shape + (3,))
+
+
+def _pyramid(table: LookupTable, plate: np.ndarray, first: int, pyramids: dict | None):
+    """(source, pyramid): the plate's bordered mip pyramid from level `first` to the table's
+    last, with room after it for the table's fill profile (`Fill`), and the pyramid's rows of
+    it; kept in `pyramids` when given (with room for any table's fill rows), else in a
+    reused buffer."""
+    seg = table.segmentation
     rows = pyramid_size(seg.height, seg.width, table.levels, first)
-    fill = table.fill
-    extra = FILL_BINS * fill.sides if fill is not None else 0
     key = (seg.height, seg.width, table.levels, first)
     source = None if pyramids is None else pyramids.get(key)
     if source is None:
         if pyramids is None:
-            source = _scratch("pyramid", (rows + extra, 3))
+            extra = FILL_BINS * table.fill.sides if table.fill is not None else 0
+            source = scratch("pyramid", (rows + extra, 3))
         else:  # with room for any table's fill rows after it
             source = pyramids[key] = np.empty((rows + 2 * FILL_BINS, 3), np.float32)
         build_pyramid(plate, table.levels, first, out=source[:rows])
-    pyramid = source[:rows]
-    shapes = level_shapes(seg.height, seg.width, table.levels)
-    offsets = level_offsets(shapes, first)
-    if fill is not None:
-        level = level_view(pyramid, shapes, fill.level, first)
-        fill_profile(
-            level,
-            fill.bins,
-            fill.window,
-            fill.counts,
-            fill.saturation,
-            out=source[fill.base :],
-            energy=fill.energy,
-            sky=fill.sky,
-            sky_gain=fill.sky_gain,
-            sky_tint=fill.sky_tint,
-        )
-    out = np.empty((table.shape[0] * table.shape[1], 3), np.float32)
-    if table.fill_texels is not None:  # the fill everywhere, the groups written over it
-        steps, side = table.fill_texels
-        lookup = fill_lookup(source[fill.base : fill.base + extra].reshape(-1, FILL_BINS, 3))
-        width = table.shape[1]
-
-        def fill_rows(a, b):
-            texels = slice(a * width, b * width)
-            mine = steps[a:b] if steps.size == table.shape[0] else steps[texels]
-            fill_values(mine, side, lookup, out[texels])
-
-        if use == "numba":  # one compiled pass over the map
-            run(kernels().fill_rows, steps, given(side), lookup, width, out)
-        elif steps.size == table.shape[0]:  # one step per row: one matrix product
-            fill_values(steps, side, lookup, out)
-        else:
-            # (blocks of 8192 texels took twice as long on a 4096-wide map: the pool's cost)
-            for_blocks(fill_rows, table.shape[0], min_rows=8, max_rows=max(1, CHUNK // width))
-    if table.trilinear is not None:  # every texel, the groups written over it
-        level0 = np.ascontiguousarray(plate, np.float32) if direct else None
-        gather_trilinear(table.trilinear, pyramid, shapes, offsets, out, plate=level0)
-    if table.index is not None:
-        _gather(source, table.texels, table.index, table.weight, out)
-    if table.extension is not None:  # over the fill written above
-        apply_extension(table.extension, pyramid, shapes, offsets, out)
-    if table.supersample is not None:  # level 0 read from the plate itself
-        rows = np.ascontiguousarray(plate, np.float32).reshape(-1, 3)
-        gather_supersample(table.supersample, source, out, plate=rows)
-    for texels, index, weight in table.groups:
-        _gather(source, texels, index, weight, out)
-    return out.reshape(table.shape + (3,))
+    return source, source[:rows]
 
 
 def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = None):
@@ -179,7 +125,10 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     without, lit = (
         apply_table(
             dataclasses.replace(
-                table, fill=dataclasses.replace(fill, sky_gain=g, sky_tint=neutral)
+                table,
+                fill=dataclasses.replace(
+                    fill, sky_gain=g, sky_tint=neutral, sky_source="ground", sky_tint_share=0.0
+                ),
             ),
             plate,
             store,
@@ -195,26 +144,6 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     weight = lit.mean(axis=-1)
     weight *= np.float32(1.0 / max(level, 1e-30))
     return without, np.clip(weight, 0.0, 1.0, out=weight)
-
-
-def _gather(source, texels, index, weight, out) -> None:
-    """out[texels] = the weighted sum of source[index] per row (texels None: every row)."""
-    if backend() == "numba":
-        every = given(texels, dtype=np.int64)  # empty: every row
-        run(kernels().weighted_rows, source, index, weight, every, out)
-        return
-    buffer = _scratch("taps", index.shape + (3,))
-
-    def gather(a, b):  # one block of texels: its taps, then their weighted sum
-        taps = np.take(source, index[a:b], axis=0, mode="clip", out=buffer[a:b])
-        if texels is None:
-            weighted_sum(taps, weight[a:b], out[a:b])
-        else:
-            sums = np.empty((b - a, 3), np.float32)
-            weighted_sum(taps, weight[a:b], sums)
-            put_rows(out, texels[a:b], sums)
-
-    for_blocks(gather, index.shape[0])
 
 
 def environment_map(

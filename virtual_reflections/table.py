@@ -37,7 +37,7 @@ import numpy as np
 
 from . import camera_view, ground, seen_texels
 from .cache import bounded
-from .extension import Extension, extension
+from .extension import extension
 from .fill import (
     fill_bins_latlong,
     fill_geometry,
@@ -46,19 +46,20 @@ from .fill import (
     side_weight,
     sky_share,
 )
+from .layers import EdgeExtension, Fill, FillSteps, Layer, Supersamples, Taps, TrilinearTexels
 from .layouts import directions_at, latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import CHUNK, for_blocks
 from .params import Params
 from .projection import plate_positions
 from .segmentation import Segmentation, segment
-from .supersample import Supersample, supersamples
-from .trilinear import MAX_TEXELS, Trilinear, trilinear_samples
+from .supersample import supersamples
+from .trilinear import MAX_TEXELS, trilinear_samples
 
 
 @dataclass(frozen=True, eq=False)
 class LookupTable:
-    """Map texels -> weighted pixels of the plate's mip pyramid, for one plate size and layout.
+    """Map texels -> filtered samples of the plate's mip pyramid, for one plate size and layout.
 
     Attributes
     ----------
@@ -71,12 +72,13 @@ class LookupTable:
         (h, w) of the map.
     levels, first_level : int
         Pyramid levels `first_level` .. `levels` - 1 are read (mipmap.py).
-    index : (T, 8) int32 ndarray or None
-        Rows of the flat bordered pyramid (mipmap.py), T = h * w (or the texels of `texels`).
-    weight : (T, 8) float32 ndarray or None
-        Their weights, rows summing to 1; both None when other payloads hold every texel.
-    texels, groups, fill, fill_texels, trilinear, supersample, extension
-        The further payloads, as the comments below say (None or empty when unused).
+    layers : tuple of layers.Layer
+        The texels' samples, written in order, each over the ones before it (layers.py): the
+        paper's method one `TrilinearTexels`; the camera view's the fill (`FillSteps` on a
+        lat-long, `Taps` of every texel on a cube), an `EdgeExtension` and `Supersamples`;
+        the ground method's those and the ground's `Taps`.
+    fill : layers.Fill or None
+        The camera view's fill profile, computed per frame after the pyramid.
     """
 
     segmentation: Segmentation
@@ -85,44 +87,17 @@ class LookupTable:
     shape: tuple[int, int]
     levels: int
     first_level: int
-    index: np.ndarray
-    weight: np.ndarray
-    # index/weight hold the taps of the texels `texels` ((n,) int64 flat indices; None: every
-    # texel in order). `groups`: further (texels, index (n, K), weight (n, K)) with other K.
-    texels: np.ndarray | None = None
-    groups: tuple = ()
-    fill: Fill | None = None  # the camera-view method's fill profile, computed per frame
-    # A lat-long's fill for every texel, before the groups (written over it): (steps (T,) or,
-    # without a world horizon, (H,) per row, uint16; side (3 W,) float32 or None), see
-    # fill.fill_values.
-    fill_texels: tuple | None = None
-    # The paper's method: every texel a trilinear sample, stored compactly (trilinear.py;
-    # index and weight are None), written before the groups.
-    trilinear: Trilinear | None = None
-    # The camera view's seen texels: the mean of n x n bilinear samples each, stored compactly
-    # (supersample.py), written after index/weight's texels, before the groups.
-    supersample: Supersample | None = None
-    # The camera view's texels near the plate's view: the edge extension faded into the fill
-    # (extension.py), written after index/weight's texels (the fill's), before the groups.
-    extension: Extension | None = None
+    layers: tuple[Layer, ...]
+    fill: Fill | None = None
 
+    def reads_plate_level0(self) -> bool:
+        """Whether every layer can read level 0 from the plate itself (`Layer.plate_level0`).
 
-@dataclass(frozen=True, eq=False)
-class Fill:
-    """Where the camera-view method's fill profile comes from (fill_geometry) and
-    goes: computed on pyramid level `level`, written to rows `base` .. `base` + FILL_BINS - 1."""
-
-    level: int
-    base: int
-    saturation: float
-    sides: int
-    energy: float
-    bins: np.ndarray
-    window: np.ndarray
-    counts: np.ndarray
-    sky: np.ndarray | None = None  # sky_share, with a world horizon (Params.up)
-    sky_gain: float = 1.0
-    sky_tint: tuple = (1.0, 1.0, 1.0)  # Params.sky_tint
+        Returns
+        -------
+        bool
+        """
+        return bool(self.layers) and all(layer.plate_level0 for layer in self.layers)
 
 
 def _spans(q: np.ndarray, axis: int, wrap: bool, block: int, start: int = 0) -> np.ndarray:
@@ -222,18 +197,53 @@ def _build_camera_view(
 ) -> LookupTable:
     """The camera-view method's table (see the module docstring and camera_view.py).
     `level0`: the pyramid keeps level 0 even when none of these texels read it there."""
-    shape = map_shape(layout, size)
     width, height = seg.width, seg.height
     intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
-    latlong = layout == "latlong"  # a lat-long's texels are worked on row by row, not listed
-    count = shape[0] * shape[1]
     filled = params.extend_fade is not None
-    position, angle, inside, directions, band, rows, cols = _clamped(
-        layout, size, width, height, intrinsics, params
-    )
-    start, stop = rows
+    clamped = _clamped(layout, size, width, height, intrinsics, params)
+    position, angle, _, directions, band, _, cols = clamped
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
+    seen, seen_level, near = _seen_and_near(
+        layout, size, width, height, intrinsics, params, clamped
+    )
+    # The near texels' mip levels: the plate's footprint, or the extension's blur where wider.
+    pixels = params.extend_blur * angle[near] * intrinsics[0]
+    blur = np.minimum(
+        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
+    )
+    lod_map = _lod(layout, size, position, band, cols).ravel()
+    near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
+    level_fill = fill_level(shapes) if filled else None
+    first, levels = _camera_levels(top, seen_level, near_lod, level_fill, level0)
+    layers, fill = [], None
+    if filled:  # the fill, written over every texel first
+        base = int(level_offsets(shapes[:levels], first)[-1])
+        fill, coat = _camera_fill(
+            layout, size, shapes, level_fill, base, intrinsics, width, params, directions
+        )
+        layers.append(coat)
+    # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
+    # fill written before it (extension.py).
+    px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
+    near_ext = camera_view.fade_weight(angle[near], params.extend_fade) if filled else None
+    edge = extension(near, px, py, near_lod, top, near_ext)
+    if edge is not None:
+        layers.append(EdgeExtension(edge))
+    if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
+        positions = seen_texels.supersample_positions(layout, size, seen, intrinsics)
+        offsets = level_offsets(shapes, first)
+        layers.append(Supersamples(supersamples(seen, positions, seen_level, shapes, offsets)))
+    shape = map_shape(layout, size)
+    return LookupTable(seg, layout, size, shape, levels, first, tuple(layers), fill)
+
+
+def _seen_and_near(layout, size, width, height, intrinsics, params, clamped):
+    """The camera view's texels the plate sees ((S,) flat ids) with their supersamples' mip
+    levels (S,), and those near the plate's view that the edge extension reaches ((N,) flat
+    ids); `clamped`: `_clamped`'s. A lat-long's are looked for in `_clamped`'s block alone."""
+    shape = map_shape(layout, size)
+    _, angle, inside, directions, _, (start, stop), cols = clamped
     block = (slice(start, stop), slice(*cols))  # may be seen or near; flat ids from its own:
     ncols = cols[1] - cols[0]
 
@@ -241,7 +251,7 @@ def _build_camera_view(
         rows, columns = np.divmod(local, ncols)
         return (start + rows) * shape[1] + cols[0] + columns
 
-    if latlong:
+    if layout == "latlong":  # a lat-long's texels are worked on row by row, not listed
         seen = ids(np.flatnonzero(inside.reshape(shape)[block]))
         centres = directions_at(layout, size, seen, 0.0, 0.0)
     else:
@@ -249,74 +259,39 @@ def _build_camera_view(
     seen, rect = seen_texels.seen_footprints(
         layout, size, centres, width, height, intrinsics, ids=seen
     )
-    seen_level = seen_texels.supersample_levels(rect, shapes)
-    unseen = np.ones(count, bool)
+    seen_level = seen_texels.supersample_levels(rect, level_shapes(height, width))
+    unseen = np.ones(shape[0] * shape[1], bool)
     unseen[seen] = False
     unseen, near_angle = unseen.reshape(shape)[block], angle.reshape(shape)[block]
-    # The edge extension's weight, for the texels it reaches only (the fade is 0 from
-    # extend_fade degrees on): most of a large map is the fill alone.
-    if filled and params.extend_fade > 0:
+    # The edge extension's texels: those it reaches only (the fade is 0 from extend_fade
+    # degrees on): most of a large map is the fill alone.
+    if params.extend_fade is not None and params.extend_fade > 0:
         reach = np.float32(math.radians(params.extend_fade))
         near = ids(np.flatnonzero(unseen & (near_angle < reach)))
-    elif filled:
+    elif params.extend_fade is not None:
         near = ids(np.flatnonzero(unseen & (near_angle <= 0)))
     else:
         near = ids(np.flatnonzero(unseen))
-    # Their mip levels: the plate's footprint, or the extension's blur where it is wider.
-    pixels = params.extend_blur * angle[near] * intrinsics[0]
-    blur = np.minimum(
-        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
-    )
-    lod_map = _lod(layout, size, position, band, cols).ravel()
-    near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
-    # Seen texels on level 0 read the plate itself (supersample.py), not the pyramid: unless
-    # `level0` (the ground method's taps may read it), the pyramid need not hold level 0.
+    return seen, seen_level, near
+
+
+def _camera_levels(top: int, seen_level, near_lod, level_fill, level0: bool):
+    """(first, levels): the pyramid levels the camera view's texels read, from the near
+    texels' levels, the seen texels' (those on level 0 read the plate itself, supersample.py,
+    unless `level0`: the ground method's taps may read it there) and the fill's (or None)."""
     pyramid_seen = seen_level if level0 else seen_level[seen_level > 0]
     used = [
-        int(near_lod.min()) if near.size else top,
+        int(near_lod.min()) if near_lod.size else top,
         int(pyramid_seen.min()) if pyramid_seen.size else top,
     ]
     deepest = [
-        int(near_lod.max()) + 1 if near.size else 0,
-        int(seen_level.max()) if seen.size else 0,
+        int(near_lod.max()) + 1 if near_lod.size else 0,
+        int(seen_level.max()) if seen_level.size else 0,
     ]
-    level_fill = fill_level(shapes) if filled else None
-    if filled:
+    if level_fill is not None:
         used.append(level_fill)
         deepest.append(level_fill)
-    first = min(min(used), max(top - 1, 0))
-    levels = min(max(deepest) + 1, top + 1)
-    offsets = level_offsets(shapes, first)
-    fill, fill_texels, main = None, None, (None, None, None)
-    if filled:
-        base = int(level_offsets(shapes[:levels], first)[-1])
-        fill, fill_texels, main = _camera_fill(
-            layout, size, shapes, level_fill, base, intrinsics, width, params, directions
-        )
-    # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
-    # fill, which is written over every texel before it (extension.py).
-    px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
-    near_ext = camera_view.fade_weight(angle[near], params.extend_fade) if filled else None
-    edge = extension(near, px, py, near_lod, top, near_ext)
-    seen_samples = None
-    if seen.size:  # compact: 8 bytes a sample, not 32 (supersample.py)
-        positions = seen_texels.supersample_positions(layout, size, seen, intrinsics)
-        seen_samples = supersamples(seen, positions, seen_level, shapes, offsets)
-    return LookupTable(
-        segmentation=seg,
-        layout=layout,
-        size=size,
-        shape=shape,
-        levels=levels,
-        first_level=first,
-        index=main[1],
-        weight=main[2],
-        texels=main[0],
-        fill=fill,
-        fill_texels=fill_texels,
-        supersample=seen_samples,
-        extension=edge,
-    )
+    return min(min(used), max(top - 1, 0)), min(max(deepest) + 1, top + 1)
 
 
 def _clamped(layout, size, width, height, intrinsics, params):
@@ -368,10 +343,8 @@ def _clamped(layout, size, width, height, intrinsics, params):
 
 def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, directions):
     """The camera view's fill (fill.py): (its Fill, computed per frame on mip `level` into the
-    rows from `base`; fill_texels: a lat-long's steps and side weights, read by
-    fill.fill_values, or None; main (texels, index, weight): a cube's taps for every texel,
-    or Nones)."""
-    latlong = layout == "latlong"
+    rows from `base`; the layer writing it over every texel: a lat-long's `FillSteps`, read
+    by fill.fill_values, or a cube's `Taps`)."""
     sides = 2 if params.fill_sides else 1
     bins, window, counts = fill_geometry(
         shapes[level],
@@ -394,16 +367,17 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
         sky_share(sides) if params.up is not None else None,
         params.sky_gain,
         params.sky_tint,
+        params.sky_source,
+        params.sky_tint_share,
     )
     _frozen(bins, window, counts)
-    # (T,) weights, or (size,) per column of a lat-long (a texel's azimuth is its column's)
-    toward = directions_at(layout, size, np.arange(size), 0, 0) if latlong else directions
+    if layout != "latlong":  # the fill's taps for every texel, in order, before the others
+        side = side_weight(directions, intrinsics, width) if sides == 2 else None
+        return fill, Taps(None, *fill_taps(directions, base, side, params.up))
+    # Compact: 2 bytes a texel, read per frame by fill_values; a texel's azimuth is its
+    # column's: the side weights per column.
+    toward = directions_at(layout, size, np.arange(size), 0, 0)
     side = side_weight(toward, intrinsics, width) if sides == 2 else None
-    if not latlong:  # the fill's taps for every texel, in order, before the others
-        main = (None, *fill_taps(directions, base, side, params.up))
-        _frozen(*main[1:])
-        return fill, None, main
-    # Compact: 2 bytes a texel, read per frame by fill_values.
     if params.up is None:  # a texel's elevation is its row's: one step per row
         steps = fill_bins_latlong(size)
     else:
@@ -414,9 +388,9 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
             fill_bins_latlong(size, params.up, slice(a, b), out=steps[a * size : b * size])
 
         for_blocks(fill_rows, rows, min_rows=16, max_rows=max(1, CHUNK // size))
-    fill_texels = (steps, None if side is None else np.repeat(side, 3))
-    _frozen(*fill_texels)
-    return fill, fill_texels, (None, None, None)
+    coat = FillSteps(steps, None if side is None else np.repeat(side, 3), base, sides)
+    _frozen(coat.steps, coat.side)
+    return fill, coat
 
 
 def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTable:
@@ -460,16 +434,9 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     # Model no more than the map needs: levels finer than any texel's are not stored.
     first = min(int(lod.min()), max(top - 1, 0))
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
+    samples = TrilinearTexels(trilinear_samples(px, py, lod, top, shape))
     return LookupTable(
-        segmentation=seg,
-        layout=layout,
-        size=size,
-        shape=shape,
-        levels=min(int(lod.max()) + 2, top + 1),
-        first_level=first,
-        index=None,
-        weight=None,
-        trilinear=trilinear_samples(px, py, lod, top, shape),
+        seg, layout, size, shape, min(int(lod.max()) + 2, top + 1), first, (samples,)
     )
 
 
@@ -498,7 +465,7 @@ def _paper_latlong(seg: Segmentation, size: int, triangles: int, top: int):
 def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
     """The ground method's table (ground.py): the camera view's table for this camera and
     horizon (cached, shared by every object position), with the texels whose ground point the
-    plate shows taken out of its groups and given their ground taps (faded into the fill near
+    plate shows taken out of its layers and given their ground taps (faded into the fill near
     the plate's borders)."""
     width, height = seg.width, seg.height
     distant = dataclasses.replace(params, method="camera", ground=None)
@@ -507,6 +474,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     shapes = level_shapes(height, width)
     offsets = level_offsets(shapes, base.first_level)
     levels = (base.first_level, base.levels - 1)
+    directions = None
     if layout == "latlong":
         ids, share, index, weight = ground.ground_taps_latlong(
             size, params.ground, params.up, intrinsics, width, height, shapes, offsets, *levels
@@ -526,55 +494,41 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
             offsets,
             *levels,
         )
-    # The camera view's groups without the ground's texels, then the ground's.
+    # The camera view's layers without the ground's texels, then the ground's.
     taken = np.zeros(base.shape[0] * base.shape[1], bool)
     taken[ids] = True
-
-    def without(texels, idx, wts):
-        if texels is None:  # every texel (the fill): the groups after it write over these
-            return texels, idx, wts
-        keep = ~taken[texels]
-        return texels[keep], idx[keep], wts[keep]
-
-    groups = [without(base.texels, base.index, base.weight), *(without(*g) for g in base.groups)]
-    seen = None if base.supersample is None else base.supersample.without(taken)
-    edge = None if base.extension is None else base.extension.without(taken)
+    layers = [layer.without(taken) for layer in base.layers]
     full = share >= 1.0
-    groups.append((ids[full], index[full], weight[full]))
+    if full.any():
+        layers.append(Taps(ids[full], index[full], weight[full]))
     part = np.flatnonzero(~full)
-    if part.size:
-        w = share[part, None]
-        if base.fill is not None:
-            rows, cols = np.divmod(ids[part], base.shape[1])
-            if layout == "latlong":
-                toward = latlong_directions(cols + 0.5, rows + 0.5, size)
-            else:
-                toward = directions[ids[part]]
-            side = None
-            if base.fill.sides == 2:
-                side = side_weight(toward, intrinsics, width)
-            fill_index, fill_weight = fill_taps(toward, base.fill.base, side, params.up)
-            groups.append(
-                (
-                    ids[part],
-                    np.concatenate((index[part], fill_index), axis=1),
-                    np.concatenate((weight[part] * w, fill_weight * (1.0 - w)), axis=1),
-                )
-            )
-        else:
-            groups.append((ids[part], index[part], weight[part]))
-    for g in groups:
-        _frozen(*g)
-    near, *rest = groups
-    return dataclasses.replace(
-        base,
-        segmentation=seg,
-        texels=near[0],
-        index=near[1],
-        weight=near[2],
-        groups=tuple(g for g in rest if g[0].size),
-        supersample=seen if seen is not None and seen.texels.size else None,
-        extension=edge,
+    if part.size and base.fill is None:
+        layers.append(Taps(ids[part], index[part], weight[part]))
+    elif part.size:
+        toward = directions[ids[part]] if directions is not None else None
+        layers.append(
+            _ground_blend(base, ids[part], share[part], index[part], weight[part], toward, params)
+        )
+    kept = tuple(layer for layer in layers if layer is not None)
+    return dataclasses.replace(base, segmentation=seg, layers=kept)
+
+
+def _ground_blend(base, texels, share, index, weight, toward, params) -> Taps:
+    """The ground's taps of `texels` faded into the fill of `base` (the camera view's table)
+    by their `share` (n,): one set of taps, the ground's and the fill's. `toward`: their
+    directions, or None on a lat-long (from their rows and columns)."""
+    width, height = base.segmentation.width, base.segmentation.height
+    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
+    if toward is None:
+        rows, cols = np.divmod(texels, base.shape[1])
+        toward = latlong_directions(cols + 0.5, rows + 0.5, base.size)
+    side = side_weight(toward, intrinsics, width) if base.fill.sides == 2 else None
+    fill_index, fill_weight = fill_taps(toward, base.fill.base, side, params.up)
+    w = share[:, None]
+    return Taps(
+        texels,
+        np.concatenate((index, fill_index), axis=1),
+        np.concatenate((weight * w, fill_weight * (1.0 - w)), axis=1),
     )
 
 

@@ -38,7 +38,7 @@ def test_tables_beyond_the_budget_are_dropped_oldest_first(budget):
 def test_a_table_larger_than_the_budget_is_returned_but_not_kept(budget):
     cache.set_limit(1000)
     t = table(0)
-    assert isinstance(t.trilinear.x, np.ndarray) and cache.cached_bytes() == 0
+    assert isinstance(t.layers[0].samples.x, np.ndarray) and cache.cached_bytes() == 0
     assert lookup_table.cache_info().currsize == 0
 
 
@@ -54,6 +54,6 @@ def test_lowering_the_limit_evicts_now(budget):
 
 def test_the_bytes_counted_are_the_tables_arrays(budget):
     t = table(0, 512)
-    tri = t.trilinear
+    tri = t.layers[0].samples
     arrays = [tri.x, tri.y, tri.upper, tri.rank]
     assert cache.nbytes(t) >= sum(a.nbytes for a in arrays)

@@ -239,12 +239,12 @@ def test_one_camera_table_serves_every_object_position():
     params = Params(method="camera", hfov=55.0)
     a = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), params, "latlong", 64)
     b = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), params, "latlong", 64)
-    assert a.extension is b.extension and a.supersample is b.supersample and a.fill is b.fill
+    assert a.layers is b.layers and a.fill is b.fill
     assert a.segmentation != b.segmentation
     paper = Params()
     c = lookup_table(320, 180, (100.0, 50.0, 140.0, 90.0), paper, "latlong", 64)
     d = lookup_table(320, 180, (200.0, 60.0, 260.0, 120.0), paper, "latlong", 64)
-    assert c.trilinear is not d.trilinear
+    assert c.layers[0].samples is not d.layers[0].samples
 
 
 @pytest.mark.parametrize("shifted", [False, True])

@@ -230,7 +230,8 @@ def test_tables_are_cached_and_read_only():
     t2 = lookup_table(W, H, BBOX, Params(), "latlong", 64)
     assert t1 is t2
     assert lookup_table(W, H, BBOX, Params(triangles=4), "latlong", 64) is not t1
-    tri = t1.trilinear
+    (layer,) = t1.layers  # the paper's table: every texel one trilinear sample
+    tri = layer.samples
     assert not any(a.flags.writeable for a in (tri.x, tri.y, tri.upper, tri.rank))
     assert ((tri.upper >= 0) & (tri.upper <= 1)).all()
 
