@@ -13,6 +13,10 @@ scores the 23rd's: only held-out figures are reported.
 
     python -m study.scenes3d.heldout_sky render OUT     # ~8 min on 2 cores (bpy 4.5)
     python -m study.scenes3d.heldout_sky fit OUT [--safe] [--groups] [--flip]   # seconds
+    python -m study.scenes3d.heldout_sky fit OUT --auto   # Auto's sky: methods.AUTO_SKY_*
+
+Renders made before Auto took the plate's mean colour (records without ``auto_sky``) are what
+the fits above were run on; `fit_auto` scores the plate-mean family on either kind.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import numpy as np
 
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
-from virtual_reflections.methods import SKY_GAINS
+from virtual_reflections.methods import AUTO_SKY_GAIN, AUTO_SKY_TINT, SKY_GAINS
 from virtual_reflections.params import Params
 
 from ..evaluate.metrics import psnr, to_display
@@ -44,6 +48,8 @@ STRUCTURES = (0.25, 0.5, 0.75, 1.0)  # the share of the camera view's structure 
 CAMERA_VIEW = "Camera View"  # its render (`render`, ``structure``) lends the sky structure
 BLENDERS = ("city", "courtyard", "interior", "studio", "sunrise", "sunset")
 SAFE_FLOOR = -1.0  # dB: the safe fit's floor (issue 41, item 4)
+AUTO_GAINS = np.exp(np.linspace(math.log(0.7), math.log(2.5), 23))  # Auto's sky: times the
+AUTO_TINTS = (0.0, 0.25, 0.5, 0.75, 1.0)  # plate mean's level; the share of its hue
 
 
 def specs() -> list:
@@ -79,6 +85,7 @@ def render(out, log=print) -> None:
                     record, _ = mirror.run_scene(
                         spec, addon, out / "cache", out / "work", WIDTH, SAMPLES, log, split
                     )
+                    record["auto_sky"] = [AUTO_SKY_GAIN, AUTO_SKY_TINT]  # the prior's recipe
                     records.write(json.dumps(record) + "\n")
                     records.flush()
     finally:
@@ -127,7 +134,12 @@ def load(out, record) -> dict:
     strong = part.sum(-1) > 0.02
     today = np.median(part[strong], axis=0) if strong.sum() > 5 else np.full(3, 1e-3)
     band = record.get("split", {}).get("band")
-    if band and record.get("surroundings", "AUTO") == "AUTO":
+    plate_mean = plate8.reshape(-1, 3).mean(0)
+    if "auto_sky" in record and record.get("surroundings", "AUTO") == "AUTO":
+        gain, tint = record["auto_sky"]  # Auto's sky from the plate's mean colour
+        hue = plate_mean / max(lum(plate_mean), 1e-6)
+        today = gain * lum(plate_mean) * ((1 - tint) + tint * hue)
+    elif band and record.get("surroundings", "AUTO") == "AUTO":
         today = np.full(3, prior_as_set(band))  # the prior the engine set, not its median
     k = mask[y0:y1, x0:x1]
     return {
@@ -143,7 +155,7 @@ def load(out, record) -> dict:
         "mask": k,
         "today": np.maximum(today, 1e-4),  # the prior's colour as rendered
         "top": plate8[: max(1, plate8.shape[0] // 10)].reshape(-1, 3).mean(0),
-        "plate_mean": plate8.reshape(-1, 3).mean(0),
+        "plate_mean": plate_mean,
         "base": psnr(to_display(m), to_display(t), k),
         "crop": (int(y0), int(y1), int(x0), int(x1)),  # of the full frame
     }
@@ -242,6 +254,72 @@ def loho(scores, groups, columns, safe=False):
     return held, chosen
 
 
+def plate_sky(d, gain, tint):
+    """The scene's mirror (linear crop) with Auto's sky from the plate: ``gain`` times the
+    plate mean's luminance, its hue ``tint`` of the way from grey to the plate mean's."""
+    target = gain * lum(d["plate_mean"]) * chroma(d, d["plate_mean"], tint)
+    return d["dark"] + (target / d["today"]) * d["part"]
+
+
+def loho_floor(scores, groups, floor=SAFE_FLOOR):
+    """Leave-one-group-out under a floor: for each group, of the columns whose worst scene
+    over the other groups is at least ``floor`` dB, the one with the best mean there (none:
+    the one with the best worst scene), scored on the group's own. Returns (held-out score
+    per scene, the column chosen for it)."""
+    scores, groups = np.asarray(scores), np.asarray(groups)
+    held = np.empty(len(scores))
+    chosen = np.empty(len(scores), int)
+    for group in np.unique(groups):
+        train = groups != group
+        best = pick_under_floor(scores[train], floor)
+        held[~train], chosen[~train] = scores[~train, best], best
+    return held, chosen
+
+
+def pick_under_floor(scores, floor=SAFE_FLOOR) -> int:
+    """The column of ``scores`` (scenes x columns) with the best mean among those whose worst
+    scene is at least ``floor``; none: the one with the best worst scene."""
+    worst, mean = scores.min(0), scores.mean(0)
+    return int(np.argmax(np.where(worst >= floor, mean, mean.min() - 1e3 + worst)))
+
+
+def fit_auto(out, log=print) -> tuple:
+    """Auto's sky (methods.AUTO_SKY_GAIN, AUTO_SKY_TINT) fitted on OUT's renders: the
+    plate-mean family (`plate_sky`) held out by HDRI under SAFE_FLOOR, then fitted on every
+    scene; prints PSNR over the plate-mean world (mean, ahead, worst), FLIP and the upper
+    half's detail ratio, and the engine's constants beside the fit. Returns (gain, tint)."""
+    data = [load(out, r) for r in read_records(out)]
+    grid = [(g, t) for g in AUTO_GAINS for t in AUTO_TINTS]
+    scores = np.array(
+        [[psnr(to_display(plate_sky(d, *p)), to_display(d["truth"]), d["mask"]) - d["base"]
+          for p in grid] for d in data]
+    )  # fmt: skip
+    hdris = np.array([d["hdri"] for d in data])
+    held, chosen = loho_floor(scores, hdris)
+    default = [d["full"] for d in data]
+    held_images = [plate_sky(d, *grid[c]) for d, c in zip(data, chosen)]
+    log(f"{len(data)} scenes, {len(set(hdris))} HDRIs; mirror PSNR over the plate mean")
+    for name, images in (("the default as rendered", default), ("held out", held_images)):
+        v = np.array(
+            [psnr(to_display(x), to_display(d["truth"]), d["mask"]) - d["base"]
+             for x, d in zip(images, data)]
+        )  # fmt: skip
+        f = [
+            flip_ldr(to_display(x), to_display(d["truth"]), d["mask"]) for x, d in zip(images, data)
+        ]
+        u = [
+            detail_ratio(to_display(x), to_display(d["truth"]), d["mask"], upper_half(d["mask"]))
+            for x, d in zip(images, data)
+        ]
+        log(f"{table_line(name, v)} FLIP {np.mean(f):.3f}, upper-half detail {np.nanmedian(u):.2f}")
+    picked = sorted({(round(grid[c][0], 2), grid[c][1]) for c in chosen})
+    gain, tint = grid[pick_under_floor(scores)]
+    log(f"fitted per held-out HDRI: {picked}")
+    log(f"fitted on every scene: gain {gain:.2f}, tint {tint:g} (the engine's: "
+        f"{AUTO_SKY_GAIN:g}, {AUTO_SKY_TINT:g})")  # fmt: skip
+    return float(gain), float(tint)
+
+
 def table_line(name, v):
     return f"| {name} | {v.mean():+.2f} dB, {(v > 0).sum()}/{len(v)}, worst {v.min():+.2f} |"
 
@@ -303,10 +381,12 @@ def main(argv=None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) < 2 or args[0] not in ("render", "fit"):
         print("usage: python -m study.scenes3d.heldout_sky render|fit OUT [--safe] [--groups] "
-              "[--flip]", file=sys.stderr)  # fmt: skip
+              "[--flip] [--auto]", file=sys.stderr)  # fmt: skip
         return 2
     if args[0] == "render":
         render(args[1])
+    elif "--auto" in args:
+        fit_auto(args[1])
     else:
         fit(args[1], "--safe" in args, "--groups" in args, "--flip" in args)
     return 0

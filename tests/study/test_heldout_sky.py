@@ -95,15 +95,16 @@ def test_the_camera_views_structure_is_levelled_to_the_estimate():
 
 
 def test_todays_prior_is_the_level_the_engine_sets():
-    """heldout_sky.prior_as_set (the prior each estimate is scaled from) is the Auto map's
-    own sky straight up, from the study's band levels of the same plate (a camera 30 degrees
-    down: no sky in view)."""
+    """heldout_sky.prior_as_set (the prior each estimate is scaled from, for renders made
+    while Auto took the ground band) is that map's own sky straight up, from the study's band
+    levels of the same plate (a camera 30 degrees down: no sky in view)."""
     import math
 
     from study.scenes3d import prior_level
     from virtual_reflections import Params, lookup_table
     from virtual_reflections.envmap import apply_table
     from virtual_reflections.layouts import texel_directions
+    from virtual_reflections.methods import SKY_GAINS
 
     w, h, hfov, pitch = 160, 90, 60.0, 30.0
     f = 0.5 * w / math.tan(math.radians(hfov / 2))
@@ -111,10 +112,32 @@ def test_todays_prior_is_the_level_the_engine_sets():
     up = (0.0, math.cos(a), -math.sin(a))
     rng = np.random.default_rng(2)
     plate = (0.05 + 0.4 * rng.random((h, w, 3)) ** 3).astype(np.float32)  # a skewed ground
-    params = Params(method="camera", intrinsics=(f, f, w / 2, h / 2), up=up)
+    params = Params(
+        method="camera",
+        intrinsics=(f, f, w / 2, h / 2),
+        up=up,
+        sky_gain=SKY_GAINS["auto"],
+        sky_source="ground",
+    )
     env = apply_table(lookup_table(w, h, (60, 30, 100, 60), params, "latlong", 256), plate)
     d = texel_directions("latlong", 256)
     sky = env[d @ np.array(up) > math.cos(math.radians(10))].mean(0)
     band = prior_level.band_levels(plate, hfov, pitch)
     assert float(sky.mean()) == pytest.approx(heldout_sky.prior_as_set(band), rel=0.02)
     assert band["log_average"] < heldout_sky.prior_as_set(band) / 1.6 < band["mean"]
+
+
+def test_the_floor_fit_takes_the_best_mean_whose_worst_scene_stays_above_the_floor():
+    """`pick_under_floor`: column 0 has the best mean but a scene 3 dB under; column 1 keeps
+    every scene above -1 dB; column 2 is safe but poorer. With nothing above the floor, the
+    best worst scene. `loho_floor` picks on the other HDRIs' scenes and scores the held-out's."""
+    from study.scenes3d import heldout_sky
+
+    scores = np.array([[4.0, 1.5, 0.5], [3.0, 1.0, 0.2], [-3.0, -0.5, 0.1]])
+    assert heldout_sky.pick_under_floor(scores) == 1
+    assert heldout_sky.pick_under_floor(scores - 5.0) == 2  # none above: the best worst
+    groups = np.array(["a", "b", "c"])
+    held, chosen = heldout_sky.loho_floor(scores, groups)
+    # without c's -3 dB scene, column 0 is safe on a and b: c is scored with it
+    assert list(chosen) == [1, 1, 0]
+    np.testing.assert_allclose(held, [1.5, 1.0, -3.0])
