@@ -52,6 +52,26 @@ def intrinsics_from_hfov(width: int, height: int, hfov_deg: float):
     return f, f, width / 2.0, height / 2.0
 
 
+def camera_intrinsics(width: int, height: int, hfov_deg: float | None = None, intrinsics=None):
+    """The plate camera's intrinsics: those given, else a centred pinhole of `hfov_deg`.
+
+    Parameters
+    ----------
+    width, height : int
+        The plate's size in pixels.
+    hfov_deg : float, optional
+        The horizontal field of view in degrees, used without `intrinsics`.
+    intrinsics : (fx, fy, cx, cy), optional
+        The camera in plate pixels (a shifted lens, non-square pixels); overrides `hfov_deg`.
+
+    Returns
+    -------
+    tuple of 4 floats
+        (fx, fy, cx, cy) in plate pixels.
+    """
+    return intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
+
+
 def clamp_to_view(directions, width, height, intrinsics):
     """Camera-frame `directions` (..., 3) clamped in azimuth and elevation onto the plate's
     view (the directions it sees): ((..., 2) float32 continuous plate position of the clamped
@@ -191,7 +211,7 @@ def plate_positions(
     log2 of `blur` x (angle to the plate's view in radians) x fx pixels, at most
     log2(max_blur x height)). Inside the plate's view the blur level is 0.
     """
-    intrinsics = intrinsics or intrinsics_from_hfov(width, height, hfov_deg)
+    intrinsics = camera_intrinsics(width, height, hfov_deg, intrinsics)
     position, angle = clamp_to_view(directions, width, height, intrinsics)
     pixels = blur * angle * intrinsics[0]
     cap = math.log2(max(max_blur * height, 1.0))

@@ -78,7 +78,7 @@ def apply_table(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
 def _pyramid(table: LookupTable, plate: np.ndarray, first: int, pyramids: dict | None):
     """(source, pyramid): the plate's bordered mip pyramid from level `first` to the table's
-    last, with room after it for the table's fill profile (`Fill`), and the pyramid's rows of
+    last, with room after it for the table's fill profile (`FillProfile`), and the pyramid's rows of
     it; kept in `pyramids` when given (with room for any table's fill rows), else in a
     reused buffer."""
     seg = table.segmentation

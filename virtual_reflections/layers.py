@@ -8,7 +8,7 @@ answers the same small protocol (`Layer`): `write(frame, out)` and `without(drop
 layer without some texels, for the ground's table built on the camera view's).
 
 A `Frame` holds what a frame's layers read: the plate, its bordered mip pyramid (mipmap.py)
-and, after it, the fill profile's rows (`Fill`, computed per frame).
+and, after it, the fill profile's rows (`FillProfile`, computed per frame).
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ class Frame:
     plate : (H, W, 3) float32 ndarray
         The clean plate.
     source : (R, 3) float32 ndarray
-        The flat bordered pyramid (mipmap.py), then the fill profile's rows (`Fill.base`).
+        The flat bordered pyramid (mipmap.py), then the fill profile's rows (`FillProfile.base`).
     pyramid : (P, 3) float32 ndarray
         The pyramid's rows of `source`.
     shapes, offsets : tuple
@@ -133,7 +133,7 @@ def _frozen(*arrays):
 
 
 @dataclass(frozen=True, eq=False)
-class Fill:
+class FillProfile:
     """The camera-view method's fill profile: where it comes from and goes, per frame.
 
     Computed on pyramid level `level` (fill.fill_geometry's bins, window and counts) and
@@ -198,7 +198,7 @@ class FillSteps:
         The left side's weight per column, repeated for R, G, B (fill.side_weight); None
         with one side.
     base, sides : int
-        The fill profile's rows in the frame's source (`Fill`).
+        The fill profile's rows in the frame's source (`FillProfile`).
     """
 
     steps: np.ndarray

@@ -6,11 +6,13 @@ size (we take 7.5 %) and keep region X at least 10–20 % (we take 15 %) away fr
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from .camera_view import camera_intrinsics
 from .methods import (
     AUTO_SKY_GAIN,
     AUTO_SKY_TINT,
@@ -95,11 +97,12 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
 
 
 @dataclass(frozen=True)
-class Params:
-    """The method and its parameters: how the plate is cut and each map direction is filled.
+class Regions:
+    """The paper's cut of the plate (§3.2) and its front face (§3.1).
 
-    Frozen, validated once in `__post_init__` (ValueError naming the field). Lengths are
-    fractions of the plate's width/height, angles in degrees, vectors in the camera frame.
+    Every method segments the plate with `enlarge` and `border` (the add-on's advice and
+    previews); the paper's method maps the environment through those regions and
+    `triangles`. Lengths are fractions of the plate's width/height.
 
     Parameters
     ----------
@@ -110,79 +113,11 @@ class Params:
     triangles : int
         n triangles of the front face (a multiple of 4, 4..MAX_TRIANGLES), or 0 for the
         continuous limit n -> infinity.
-    hfov : float or None
-        The plate camera's horizontal field of view (0..180); the paper's method ignores it,
-        the camera and ground methods need it or `intrinsics`.
-    method : {"paper", "camera", "ground"}
-        "paper" (Ropinski et al. 2004, §3.1-3.2), "camera" (camera_view.py, the add-on's Camera
-        View: the plate placed by the camera's field of view, blurred edge extension, fill
-        outside) or "ground" (the camera view plus the ground plane seen from the object:
-        ground.py). "frustum", the camera method's earlier name, is stored as "camera".
-    extend_blur, extend_cap : float
-        The camera-view method's blur outside the plate's view: pixels of blur per pixel of
-        angular distance (0..100), and its cap as a share of the plate height (0..1].
-    intrinsics : (fx, fy, cx, cy) or None
-        The plate camera in plate pixels (lens shift, pixel aspect); overrides `hfov`.
-    extend_fade : float or None
-        Degrees from the plate's view over which the edge extension fades (a smoothstep in
-        angle) into the fill, 0..180; None extends the edges everywhere (20: docs/accuracy.md).
-    fill_width : float
-        Half-width of the elevation window the fill averages, 0.5..90.
-    fill_saturation : float
-        How much of the plate's colour the fill keeps, 0 (grey of the same luminance)..1; with
-        `fill_sides`, of the tint both sides share (their difference is kept).
-    fill_spread : float
-        Degrees of half-width per degree beyond the plate's elevations by which the fill's
-        window widens (far above or below, the whole plate's average), 0..10; 0 keeps the band's.
-    fill_sides : bool
-        The plate's left half fills the left, its right half the right (both straight ahead
-        and behind), sharing the band's brightness; False: by elevation only.
-    fill_energy : float
-        The fill's brightness, 0 (the log-average, robust to a sun in view but darker)..1 (the
-        arithmetic mean's luminance, the plate's energy), between them a geometric blend.
-    ground : tuple of 4 to 6 floats or None
-        (ox, oy, oz, height[, radius[, shadow]]) for the ground method: the object's centre in
-        the camera frame (scene units), its height above the ground (> 0), the radius of the
-        sphere standing for it in its contact shadow (> 0, default `height`: resting on the
-        ground) and that shadow's strength (0..1, default 1: the share of the sky it hides).
-    up : (x, y, z) or None
-        The world's up (the ground's normal), needed by the ground method: unseen directions
-        are then filled by elevation above the world's horizon, not the camera's.
-    sky_gain : float
-        With `up`: how many times brighter than `sky_source` the sky is taken to be where the
-        plate does not show it (fill.sky_share), 0..MAX_SKY_GAIN; default Auto's,
-        AUTO_SKY_GAIN (`sky_prior_for`; docs/ground.md).
-    sky_tint : (r, g, b)
-        The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
-        neutral (the add-on's, but for Surroundings Custom).
-    sky_source : {"plate", "ground"}
-        What the prior's level is taken from: "plate", the whole plate's mean colour (each
-        pixel clipped at 1); "ground", the plate's ground in a band 5-40 degrees below the
-        horizon (fill.prior_level).
-    sky_tint_share : float
-        With "plate": how far the prior's hue goes from grey to the plate's mean hue, 0..1.
     """
 
     enlarge: float = 0.075
     border: float = 0.15
     triangles: int = 0
-    hfov: float | None = None
-    method: str = "paper"
-    extend_blur: float = 1.0
-    extend_cap: float = 0.125
-    intrinsics: tuple | None = None
-    extend_fade: float | None = 20.0
-    fill_width: float = 2.0
-    fill_saturation: float = 0.5
-    fill_spread: float = 0.5
-    fill_sides: bool = True
-    fill_energy: float = 0.5
-    ground: tuple | None = None
-    up: tuple | None = None
-    sky_gain: float = AUTO_SKY_GAIN
-    sky_tint: tuple = (1.0, 1.0, 1.0)
-    sky_source: str = "plate"
-    sky_tint_share: float = AUTO_SKY_TINT
 
     def __post_init__(self):
         if not (math.isfinite(self.enlarge) and 0.0 <= self.enlarge <= 1.0):
@@ -197,29 +132,26 @@ class Params:
                 f"triangles must be 0 (continuous) or a multiple of 4 from 4 to "
                 f"{MAX_TRIANGLES}, got {n}"
             )
+
+
+@dataclass(frozen=True)
+class Lens:
+    """The plate camera, which the camera-view methods place the plate by.
+
+    Parameters
+    ----------
+    hfov : float or None
+        The horizontal field of view in degrees (0..180) of a centred pinhole.
+    intrinsics : (fx, fy, cx, cy) or None
+        The camera in plate pixels (lens shift, pixel aspect); overrides `hfov`.
+    """
+
+    hfov: float | None = None
+    intrinsics: tuple | None = None
+
+    def __post_init__(self):
         if self.hfov is not None and not (math.isfinite(self.hfov) and 0.0 < self.hfov < 180.0):
             raise ValueError(f"hfov must be between 0 and 180 degrees, got {self.hfov}")
-        if isinstance(self.method, str) and self.method in METHOD_ALIASES:
-            # frozen: normalised once here, so equal params hash (and cache) alike
-            object.__setattr__(self, "method", METHOD_ALIASES[self.method])
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
-        if not (0.0 <= self.extend_blur <= 100.0 and 0.0 < self.extend_cap <= 1.0):
-            raise ValueError("extend_blur must be in [0, 100] and extend_cap in (0, 1]")
-        if self.extend_fade is not None and not (
-            math.isfinite(self.extend_fade) and 0.0 <= self.extend_fade <= 180.0
-        ):
-            raise ValueError(f"extend_fade must be None or 0..180 degrees, got {self.extend_fade}")
-        if not (math.isfinite(self.fill_width) and 0.5 <= self.fill_width <= 90.0):
-            raise ValueError(f"fill_width must be 0.5..90 degrees, got {self.fill_width}")
-        if not (math.isfinite(self.fill_saturation) and 0.0 <= self.fill_saturation <= 1.0):
-            raise ValueError(f"fill_saturation must be 0..1, got {self.fill_saturation}")
-        if not (math.isfinite(self.fill_spread) and 0.0 <= self.fill_spread <= 10.0):
-            raise ValueError(f"fill_spread must be 0..10, got {self.fill_spread}")
-        if not isinstance(self.fill_sides, bool):
-            raise ValueError(f"fill_sides must be True or False, got {self.fill_sides!r}")
-        if not (math.isfinite(self.fill_energy) and 0.0 <= self.fill_energy <= 1.0):
-            raise ValueError(f"fill_energy must be 0..1, got {self.fill_energy}")
         if self.intrinsics is not None and (
             len(self.intrinsics) != 4
             or not all(math.isfinite(v) for v in self.intrinsics)
@@ -227,6 +159,130 @@ class Params:
             or self.intrinsics[1] <= 0
         ):
             raise ValueError(f"intrinsics must be (fx > 0, fy > 0, cx, cy), got {self.intrinsics}")
+
+    @property
+    def known(self) -> bool:
+        """Whether the camera is given (`hfov` or `intrinsics`)."""
+        return self.hfov is not None or self.intrinsics is not None
+
+    def at(self, width: int, height: int) -> tuple:
+        """The camera's intrinsics on a plate of this size (camera_view.camera_intrinsics).
+
+        Parameters
+        ----------
+        width, height : int
+            The plate's size in pixels.
+
+        Returns
+        -------
+        tuple of 4 floats
+            (fx, fy, cx, cy) in plate pixels.
+        """
+        return camera_intrinsics(width, height, self.hfov, self.intrinsics)
+
+
+@dataclass(frozen=True)
+class Extend:
+    """The camera view's edge extension outside the plate's view (extension.py).
+
+    Parameters
+    ----------
+    blur : float
+        Pixels of blur per pixel of angular distance from the plate's view, 0..100.
+    cap : float
+        The blur's cap as a share of the plate height, (0..1].
+    fade : float or None
+        Degrees from the plate's view over which the extension fades (a smoothstep in angle)
+        into the fill, 0..180; None extends the edges everywhere (20: docs/accuracy.md).
+    """
+
+    blur: float = 1.0
+    cap: float = 0.125
+    fade: float | None = 20.0
+
+    def __post_init__(self):
+        if not (0.0 <= self.blur <= 100.0 and 0.0 < self.cap <= 1.0):
+            raise ValueError("extend_blur must be in [0, 100] and extend_cap in (0, 1]")
+        if self.fade is not None and not (math.isfinite(self.fade) and 0.0 <= self.fade <= 180.0):
+            raise ValueError(f"extend_fade must be None or 0..180 degrees, got {self.fade}")
+
+
+@dataclass(frozen=True)
+class Fill:
+    """The camera view's fill where the plate shows nothing: profiles by elevation (fill.py).
+
+    Parameters
+    ----------
+    width : float
+        Half-width of the elevation window the fill averages, 0.5..90 degrees.
+    saturation : float
+        How much of the plate's colour the fill keeps, 0 (grey of the same luminance)..1; with
+        `sides`, of the tint both sides share (their difference is kept).
+    spread : float
+        Degrees of half-width per degree beyond the plate's elevations by which the window
+        widens (far above or below, the whole plate's average), 0..10; 0 keeps the band's.
+    sides : bool
+        The plate's left half fills the left, its right half the right (both straight ahead
+        and behind), sharing the band's brightness; False: by elevation only.
+    energy : float
+        The fill's brightness, 0 (the log-average, robust to a sun in view but darker)..1 (the
+        arithmetic mean's luminance, the plate's energy), between them a geometric blend.
+    """
+
+    width: float = 2.0
+    saturation: float = 0.5
+    spread: float = 0.5
+    sides: bool = True
+    energy: float = 0.5
+
+    def __post_init__(self):
+        if not (math.isfinite(self.width) and 0.5 <= self.width <= 90.0):
+            raise ValueError(f"fill_width must be 0.5..90 degrees, got {self.width}")
+        if not (math.isfinite(self.saturation) and 0.0 <= self.saturation <= 1.0):
+            raise ValueError(f"fill_saturation must be 0..1, got {self.saturation}")
+        if not (math.isfinite(self.spread) and 0.0 <= self.spread <= 10.0):
+            raise ValueError(f"fill_spread must be 0..10, got {self.spread}")
+        if not isinstance(self.sides, bool):
+            raise ValueError(f"fill_sides must be True or False, got {self.sides!r}")
+        if not (math.isfinite(self.energy) and 0.0 <= self.energy <= 1.0):
+            raise ValueError(f"fill_energy must be 0..1, got {self.energy}")
+
+
+@dataclass(frozen=True)
+class World:
+    """The world around the camera: its up and the sky prior (the artist's Surroundings).
+
+    The sky prior is the sky taken where the plate does not show it (fill.sky_share); the
+    Surroundings an artist names decide its fields (`sky_prior_for`). Vectors are in the
+    camera frame.
+
+    Parameters
+    ----------
+    up : (x, y, z) or None
+        The world's up (the ground's normal), needed by the ground method: unseen directions
+        are then filled by elevation above the world's horizon, not the camera's.
+    sky_gain : float
+        With `up`: how many times brighter than `sky_source` the sky is taken to be where the
+        plate does not show it, 0..MAX_SKY_GAIN; default Auto's, AUTO_SKY_GAIN
+        (`sky_prior_for`; docs/ground.md).
+    sky_tint : (r, g, b)
+        The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
+        neutral (the add-on's, but for Surroundings Custom).
+    sky_source : {"plate", "ground"}
+        What the prior's level is taken from: "plate", the whole plate's mean colour (each
+        pixel clipped at 1); "ground", the plate's ground in a band 5-40 degrees below the
+        horizon (fill.prior_level).
+    sky_tint_share : float
+        With "plate": how far the prior's hue goes from grey to the plate's mean hue, 0..1.
+    """
+
+    up: tuple | None = None
+    sky_gain: float = AUTO_SKY_GAIN
+    sky_tint: tuple = (1.0, 1.0, 1.0)
+    sky_source: str = "plate"
+    sky_tint_share: float = AUTO_SKY_TINT
+
+    def __post_init__(self):
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
             raise ValueError(f"sky_gain must be 0..{MAX_SKY_GAIN:g}, got {self.sky_gain}")
         if self.sky_source not in SKY_SOURCES:
@@ -238,15 +294,112 @@ class Params:
         object.__setattr__(self, "sky_tint", tint)
         if len(tint) != 3 or not all(math.isfinite(v) and v >= 0 for v in tint) or max(tint) <= 0:
             raise ValueError(f"sky_tint must be a colour (R, G, B >= 0, not black), got {tint}")
-        for name in ("ground", "up"):
-            value = getattr(self, name)
-            if value is not None:
-                value = tuple(float(v) for v in value)
-                object.__setattr__(self, name, value)
-                if not all(math.isfinite(v) for v in value):
-                    raise ValueError(f"{name} must be finite, got {value}")
-        if self.up is not None and (len(self.up) != 3 or math.hypot(*self.up) < 1e-9):
-            raise ValueError(f"up must be a non-zero camera-frame vector, got {self.up}")
+        up = _finite("up", self.up)
+        object.__setattr__(self, "up", up)
+        if up is not None and (len(up) != 3 or math.hypot(*up) < 1e-9):
+            raise ValueError(f"up must be a non-zero camera-frame vector, got {up}")
+
+
+def _finite(name: str, value):
+    """`value` as a tuple of floats (None stays None); ValueError naming `name` unless finite."""
+    if value is None:
+        return None
+    value = tuple(float(v) for v in value)
+    if not all(math.isfinite(v) for v in value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+# The parts of Params by name, and the flat keywords of one bag of fields (Params' earlier
+# form, still accepted and readable): each the field of one part, the edge extension's and
+# the fill's with their part's name in front ("fill_width": the fill's width).
+PARTS = {"regions": Regions, "lens": Lens, "extend": Extend, "fill": Fill, "world": World}
+FLAT = {
+    (f"{part}_{f.name}" if part in ("extend", "fill") else f.name): (part, f.name)
+    for part, kind in PARTS.items()
+    for f in dataclasses.fields(kind)
+}
+
+
+@dataclass(frozen=True, init=False)
+class Params:
+    """The method and its parameters: a common part and one small part per concern.
+
+    Which parts a method reads: "paper" the `regions` alone; "camera" (the add-on's Camera
+    View) the `lens`, the edge extension (`extend`), the `fill` and the `world` (its up and
+    the sky prior); "ground" those and `ground`. Every method segments the plate by
+    `regions` (the add-on's advice). Frozen and validated once, part by part and then as a
+    whole (ValueError naming the field). The default is the paper's method: the one that a
+    plate and an object's box alone define (the others need the plate camera).
+
+    The flat keywords of earlier versions are still accepted and readable (FLAT):
+    ``Params(method="camera", hfov=60.0, fill_width=5.0)`` is ``Params(method="camera",
+    lens=Lens(hfov=60.0), fill=Fill(width=5.0))``, and ``params.fill_width`` reads
+    ``params.fill.width``; `dataclasses.replace` takes them too.
+
+    Parameters
+    ----------
+    method : {"paper", "camera", "ground"}
+        "paper" (Ropinski et al. 2004, §3.1-3.2), "camera" (camera_view.py: the plate placed
+        by the camera's field of view, blurred edge extension, fill outside) or "ground" (the
+        camera view plus the ground plane seen from the object: ground.py). "frustum", the
+        camera method's earlier name, is stored as "camera".
+    regions : Regions, optional
+    lens : Lens, optional
+        Needed by the camera and ground methods (`hfov` or `intrinsics`).
+    extend : Extend, optional
+    fill : Fill, optional
+    world : World, optional
+        Its `up` is needed by the ground method.
+    ground : tuple of 4 to 6 floats or None
+        (ox, oy, oz, height[, radius[, shadow]]) for the ground method: the object's centre in
+        the camera frame (scene units), its height above the ground (> 0), the radius of the
+        sphere standing for it in its contact shadow (> 0, default `height`: resting on the
+        ground) and that shadow's strength (0..1, default 1: the share of the sky it hides).
+    **flat
+        Fields of the parts by their flat names (FLAT), applied over the parts given.
+    """
+
+    method: str = "paper"
+    regions: Regions = Regions()
+    lens: Lens = Lens()
+    extend: Extend = Extend()
+    fill: Fill = Fill()
+    world: World = World()
+    ground: tuple | None = None
+
+    def __init__(
+        self,
+        method: str = "paper",
+        regions: Regions = Regions(),
+        lens: Lens = Lens(),
+        extend: Extend = Extend(),
+        fill: Fill = Fill(),
+        world: World = World(),
+        ground: tuple | None = None,
+        **flat,
+    ):
+        parts = {"regions": regions, "lens": lens, "extend": extend, "fill": fill, "world": world}
+        changes = {}
+        for name, value in flat.items():
+            if name not in FLAT:
+                raise TypeError(f"Params() got an unexpected keyword argument {name!r}")
+            part, field = FLAT[name]
+            changes.setdefault(part, {})[field] = value
+        for part, fields in changes.items():
+            parts[part] = dataclasses.replace(parts[part], **fields)
+        if isinstance(method, str) and method in METHOD_ALIASES:
+            # frozen: normalised once here, so equal params hash (and cache) alike
+            method = METHOD_ALIASES[method]
+        object.__setattr__(self, "method", method)
+        for part, value in parts.items():
+            object.__setattr__(self, part, value)
+        object.__setattr__(self, "ground", _finite("ground", ground))
+        self._check()
+
+    def _check(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
         if self.ground is not None and (
             len(self.ground) not in (4, 5, 6)
             or min(self.ground[3:5]) <= 0
@@ -257,9 +410,25 @@ class Params:
                 "camera frame, its height above the ground and its radius (> 0), its contact "
                 f"shadow's strength (0..1), got {self.ground}"
             )
-        if reads_ground(self.method) and (self.ground is None or self.up is None):
+        if reads_ground(self.method) and (self.ground is None or self.world.up is None):
             raise ValueError("the ground method needs the object's position (ground) and up")
-        if uses_camera(self.method) and self.hfov is None and self.intrinsics is None:
+        if uses_camera(self.method) and not self.lens.known:
             raise ValueError(
                 "the camera method needs the plate camera's field of view (hfov or intrinsics)"
             )
+
+
+class _Flat:
+    """A flat name of Params (FLAT): on an instance its part's field, on the class its default."""
+
+    def __init__(self, part: str, field: str):
+        self.part, self.field = part, field
+
+    def __get__(self, params, owner=None):
+        if params is None:
+            return getattr(PARTS[self.part], self.field)
+        return getattr(getattr(params, self.part), self.field)
+
+
+for _name, (_part, _field) in FLAT.items():
+    setattr(Params, _name, _Flat(_part, _field))

@@ -46,7 +46,15 @@ from .fill import (
     side_weight,
     sky_share,
 )
-from .layers import EdgeExtension, Fill, FillSteps, Layer, Supersamples, Taps, TrilinearTexels
+from .layers import (
+    EdgeExtension,
+    FillProfile,
+    FillSteps,
+    Layer,
+    Supersamples,
+    Taps,
+    TrilinearTexels,
+)
 from .layouts import directions_at, latlong_directions, map_shape, texel_directions
 from .mipmap import level_offsets, level_shapes
 from .parallel import CHUNK, for_blocks
@@ -77,7 +85,7 @@ class LookupTable:
         paper's method one `TrilinearTexels`; the camera view's the fill (`FillSteps` on a
         lat-long, `Taps` of every texel on a cube), an `EdgeExtension` and `Supersamples`;
         the ground method's those and the ground's `Taps`.
-    fill : layers.Fill or None
+    fill : layers.FillProfile or None
         The camera view's fill profile, computed per frame after the pyramid.
     """
 
@@ -88,7 +96,7 @@ class LookupTable:
     levels: int
     first_level: int
     layers: tuple[Layer, ...]
-    fill: Fill | None = None
+    fill: FillProfile | None = None
 
     def reads_plate_level0(self) -> bool:
         """Whether every layer can read level 0 from the plate itself (`Layer.plate_level0`).
@@ -198,20 +206,19 @@ def _build_camera_view(
     """The camera-view method's table (see the module docstring and camera_view.py).
     `level0`: the pyramid keeps level 0 even when none of these texels read it there."""
     width, height = seg.width, seg.height
-    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
-    filled = params.extend_fade is not None
-    clamped = _clamped(layout, size, width, height, intrinsics, params)
+    intrinsics = params.lens.at(width, height)
+    extend = params.extend
+    filled = extend.fade is not None
+    clamped = _clamped(layout, size, width, height, intrinsics, extend.fade)
     position, angle, _, directions, band, _, cols = clamped
     shapes = level_shapes(height, width)
     top = len(shapes) - 1
     seen, seen_level, near = _seen_and_near(
-        layout, size, width, height, intrinsics, params, clamped
+        layout, size, width, height, intrinsics, extend.fade, clamped
     )
     # The near texels' mip levels: the plate's footprint, or the extension's blur where wider.
-    pixels = params.extend_blur * angle[near] * intrinsics[0]
-    blur = np.minimum(
-        np.log2(np.maximum(pixels, 1.0)), math.log2(max(params.extend_cap * height, 1.0))
-    )
+    pixels = extend.blur * angle[near] * intrinsics[0]
+    blur = np.minimum(np.log2(np.maximum(pixels, 1.0)), math.log2(max(extend.cap * height, 1.0)))
     lod_map = _lod(layout, size, position, band, cols).ravel()
     near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
     level_fill = fill_level(shapes) if filled else None
@@ -226,7 +233,7 @@ def _build_camera_view(
     # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
     # fill written before it (extension.py).
     px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
-    near_ext = camera_view.fade_weight(angle[near], params.extend_fade) if filled else None
+    near_ext = camera_view.fade_weight(angle[near], extend.fade) if filled else None
     edge = extension(near, px, py, near_lod, top, near_ext)
     if edge is not None:
         layers.append(EdgeExtension(edge))
@@ -238,10 +245,11 @@ def _build_camera_view(
     return LookupTable(seg, layout, size, shape, levels, first, tuple(layers), fill)
 
 
-def _seen_and_near(layout, size, width, height, intrinsics, params, clamped):
+def _seen_and_near(layout, size, width, height, intrinsics, fade, clamped):
     """The camera view's texels the plate sees ((S,) flat ids) with their supersamples' mip
     levels (S,), and those near the plate's view that the edge extension reaches ((N,) flat
-    ids); `clamped`: `_clamped`'s. A lat-long's are looked for in `_clamped`'s block alone."""
+    ids; `fade`: Extend.fade); `clamped`: `_clamped`'s. A lat-long's are looked for in
+    `_clamped`'s block alone."""
     shape = map_shape(layout, size)
     _, angle, inside, directions, _, (start, stop), cols = clamped
     block = (slice(start, stop), slice(*cols))  # may be seen or near; flat ids from its own:
@@ -265,10 +273,10 @@ def _seen_and_near(layout, size, width, height, intrinsics, params, clamped):
     unseen, near_angle = unseen.reshape(shape)[block], angle.reshape(shape)[block]
     # The edge extension's texels: those it reaches only (the fade is 0 from extend_fade
     # degrees on): most of a large map is the fill alone.
-    if params.extend_fade is not None and params.extend_fade > 0:
-        reach = np.float32(math.radians(params.extend_fade))
+    if fade is not None and fade > 0:
+        reach = np.float32(math.radians(fade))
         near = ids(np.flatnonzero(unseen & (near_angle < reach)))
-    elif params.extend_fade is not None:
+    elif fade is not None:
         near = ids(np.flatnonzero(unseen & (near_angle <= 0)))
     else:
         near = ids(np.flatnonzero(unseen))
@@ -294,7 +302,7 @@ def _camera_levels(top: int, seen_level, near_lod, level_fill, level0: bool):
     return min(min(used), max(top - 1, 0)), min(max(deepest) + 1, top + 1)
 
 
-def _clamped(layout, size, width, height, intrinsics, params):
+def _clamped(layout, size, width, height, intrinsics, fade):
     """Every texel the camera view may read the plate for, clamped onto the plate's view
     (camera_view.clamp_to_view): (position (H, W, 2) float32 plate positions, angle (T,)
     float32 radians to the clamped twin, inside (T,) bool whether the plate sees the texel's
@@ -302,12 +310,12 @@ def _clamped(layout, size, width, height, intrinsics, params):
     None on a lat-long), band (first, stop) the rows the extension may reach, rows (first,
     stop) and cols (first, stop) the block worked on). A lat-long's texels outside the block
     are the fill alone: never projected, given a level or looked at; its trigonometry is per
-    row and column."""
+    row and column. `fade`: Extend.fade (None: no fill, every texel extended)."""
     shape = map_shape(layout, size)
     count = shape[0] * shape[1]
     position = np.empty((count, 2), np.float32)
     angle = np.empty(count, np.float32)
-    filled = params.extend_fade is not None
+    filled = fade is not None
     band, cols = (0, shape[0]), (0, shape[1])
     if layout != "latlong":
         directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
@@ -321,7 +329,7 @@ def _clamped(layout, size, width, height, intrinsics, params):
         return position.reshape(shape + (2,)), angle, None, directions, band, band, cols
     inside = np.empty(count, bool)
     if filled:
-        reach = math.radians(max(params.extend_fade, 0.0))
+        reach = math.radians(max(fade, 0.0))
         band = camera_view.latlong_rows_near_view(size, width, height, intrinsics, reach)
     start, stop = max(band[0] - 1, 0), min(band[1] + 1, shape[0])  # + the lod's neighbours
     if filled:
@@ -342,50 +350,46 @@ def _clamped(layout, size, width, height, intrinsics, params):
 
 
 def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, directions):
-    """The camera view's fill (fill.py): (its Fill, computed per frame on mip `level` into the
-    rows from `base`; the layer writing it over every texel: a lat-long's `FillSteps`, read
-    by fill.fill_values, or a cube's `Taps`)."""
-    sides = 2 if params.fill_sides else 1
+    """The camera view's fill (fill.py) by `params`' fill and world: (its FillProfile,
+    computed per frame on mip `level` into the rows from `base`; the layer writing it over
+    every texel: a lat-long's `FillSteps`, read by fill.fill_values, or a cube's `Taps`)."""
+    options, world = params.fill, params.world
+    up = world.up
+    sides = 2 if options.sides else 1
     bins, window, counts = fill_geometry(
-        shapes[level],
-        level,
-        intrinsics,
-        params.fill_width,
-        params.fill_spread,
-        sides,
-        params.up,
+        shapes[level], level, intrinsics, options.width, options.spread, sides, up
     )
-    fill = Fill(
+    fill = FillProfile(
         level,
         base,
-        params.fill_saturation,
+        options.saturation,
         sides,
-        params.fill_energy,
+        options.energy,
         bins,
         window,
         counts,
-        sky_share(sides) if params.up is not None else None,
-        params.sky_gain,
-        params.sky_tint,
-        params.sky_source,
-        params.sky_tint_share,
+        sky_share(sides) if up is not None else None,
+        world.sky_gain,
+        world.sky_tint,
+        world.sky_source,
+        world.sky_tint_share,
     )
     _frozen(bins, window, counts)
     if layout != "latlong":  # the fill's taps for every texel, in order, before the others
         side = side_weight(directions, intrinsics, width) if sides == 2 else None
-        return fill, Taps(None, *fill_taps(directions, base, side, params.up))
+        return fill, Taps(None, *fill_taps(directions, base, side, up))
     # Compact: 2 bytes a texel, read per frame by fill_values; a texel's azimuth is its
     # column's: the side weights per column.
     toward = directions_at(layout, size, np.arange(size), 0, 0)
     side = side_weight(toward, intrinsics, width) if sides == 2 else None
-    if params.up is None:  # a texel's elevation is its row's: one step per row
+    if up is None:  # a texel's elevation is its row's: one step per row
         steps = fill_bins_latlong(size)
     else:
         rows = size // 2
         steps = np.empty(rows * size, np.uint16)
 
         def fill_rows(a, b):
-            fill_bins_latlong(size, params.up, slice(a, b), out=steps[a * size : b * size])
+            fill_bins_latlong(size, up, slice(a, b), out=steps[a * size : b * size])
 
         for_blocks(fill_rows, rows, min_rows=16, max_rows=max(1, CHUNK // size))
     coat = FillSteps(steps, None if side is None else np.repeat(side, 3), base, sides)
@@ -411,22 +415,25 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     """
     if not isinstance(params, Params):
         params = Params(triangles=int(params))
-    if params.method == "camera":
-        return _build_camera_view(seg, layout, size, params)
-    if params.method == "ground":
-        return _build_ground(seg, layout, size, params)
+    return BUILDERS[params.method](seg, layout, size, params)
+
+
+def _build_paper(seg: Segmentation, layout: str, size: int, params: Params) -> LookupTable:
+    """The paper's table: every texel one trilinear sample of its plate position (§3.1),
+    at the mip level of its footprint."""
+    triangles = params.regions.triangles
     shape = map_shape(layout, size)
     shapes = level_shapes(seg.height, seg.width)
     top = len(shapes) - 1
     if layout == "latlong":
-        position, lod = _paper_latlong(seg, size, params.triangles, top)
+        position, lod = _paper_latlong(seg, size, triangles, top)
     else:
         directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
         count = directions.shape[0]
         position = np.empty((count, 2), np.float32)
 
         def project(a, b):
-            position[a:b] = plate_positions(directions[a:b], seg, params.triangles)
+            position[a:b] = plate_positions(directions[a:b], seg, triangles)
 
         for_blocks(project, count, max_rows=CHUNK)
         position = position.reshape(shape + (2,))
@@ -435,9 +442,8 @@ def build_table(seg: Segmentation, layout: str, size: int, params=0) -> LookupTa
     first = min(int(lod.min()), max(top - 1, 0))
     px, py = position[..., 0].ravel(), position[..., 1].ravel()
     samples = TrilinearTexels(trilinear_samples(px, py, lod, top, shape))
-    return LookupTable(
-        seg, layout, size, shape, min(int(lod.max()) + 2, top + 1), first, (samples,)
-    )
+    levels = min(int(lod.max()) + 2, top + 1)
+    return LookupTable(seg, layout, size, shape, levels, first, (samples,))
 
 
 def _paper_latlong(seg: Segmentation, size: int, triangles: int, top: int):
@@ -470,14 +476,15 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
     width, height = seg.width, seg.height
     distant = dataclasses.replace(params, method="camera", ground=None)
     base = _camera_table(width, height, distant, layout, size, True)  # level 0 for the ground
-    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
+    intrinsics = params.lens.at(width, height)
+    up = params.world.up
     shapes = level_shapes(height, width)
     offsets = level_offsets(shapes, base.first_level)
     levels = (base.first_level, base.levels - 1)
     directions = None
     if layout == "latlong":
         ids, share, index, weight = ground.ground_taps_latlong(
-            size, params.ground, params.up, intrinsics, width, height, shapes, offsets, *levels
+            size, params.ground, up, intrinsics, width, height, shapes, offsets, *levels
         )
     else:
         directions = texel_directions(layout, size, dtype=np.float32).reshape(-1, 3)
@@ -486,7 +493,7 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
             size,
             directions,
             params.ground,
-            params.up,
+            up,
             intrinsics,
             width,
             height,
@@ -506,30 +513,32 @@ def _build_ground(seg: Segmentation, layout: str, size: int, params: Params) -> 
         layers.append(Taps(ids[part], index[part], weight[part]))
     elif part.size:
         toward = directions[ids[part]] if directions is not None else None
-        layers.append(
-            _ground_blend(base, ids[part], share[part], index[part], weight[part], toward, params)
-        )
+        taps = (ids[part], share[part], index[part], weight[part])
+        layers.append(_ground_blend(base, *taps, toward, intrinsics, up))
     kept = tuple(layer for layer in layers if layer is not None)
     return dataclasses.replace(base, segmentation=seg, layers=kept)
 
 
-def _ground_blend(base, texels, share, index, weight, toward, params) -> Taps:
+def _ground_blend(base, texels, share, index, weight, toward, intrinsics, up) -> Taps:
     """The ground's taps of `texels` faded into the fill of `base` (the camera view's table)
     by their `share` (n,): one set of taps, the ground's and the fill's. `toward`: their
     directions, or None on a lat-long (from their rows and columns)."""
-    width, height = base.segmentation.width, base.segmentation.height
-    intrinsics = params.intrinsics or camera_view.intrinsics_from_hfov(width, height, params.hfov)
+    width = base.segmentation.width
     if toward is None:
         rows, cols = np.divmod(texels, base.shape[1])
         toward = latlong_directions(cols + 0.5, rows + 0.5, base.size)
     side = side_weight(toward, intrinsics, width) if base.fill.sides == 2 else None
-    fill_index, fill_weight = fill_taps(toward, base.fill.base, side, params.up)
+    fill_index, fill_weight = fill_taps(toward, base.fill.base, side, up)
     w = share[:, None]
     return Taps(
         texels,
         np.concatenate((index, fill_index), axis=1),
         np.concatenate((weight * w, fill_weight * (1.0 - w)), axis=1),
     )
+
+
+# Each method's table (Params.method -> its builder; methods.METHODS names them).
+BUILDERS = {"paper": _build_paper, "camera": _build_camera_view, "ground": _build_ground}
 
 
 def max_size(layout: str) -> int:
