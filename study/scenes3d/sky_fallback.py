@@ -226,6 +226,7 @@ def render_fresh(out, log=print) -> None:
                 record, _ = mirror.run_scene(
                     spec, addon, out / "cache", out / "work", hs.WIDTH, hs.SAMPLES, log, True
                 )
+                record["auto_sky"] = [hs.AUTO_SKY_GAIN, hs.AUTO_SKY_TINT]  # the prior's recipe
                 records.write(json.dumps(record) + "\n")
                 records.flush()
     finally:
