@@ -20,6 +20,7 @@ Bad input: one line on stderr and exit code 2 (1 for a chunk that kept failing).
 """
 
 import argparse
+import contextlib
 import importlib.util
 import json
 import os
@@ -388,8 +389,7 @@ def run_farm(
     The first failure cancels the chunks not yet started and raises FarmError; frames already
     written stay (a re-run skips them) and the merged report holds what finished, with
     `farm.failed` naming the chunk. `log`: called with each progress line (None: quiet)."""
-    import cloudpickle
-    from distributed import Client, as_completed
+    from distributed import Client
 
     started = time.perf_counter()
     shot, plate, out = (os.path.abspath(str(p)) for p in (shot, plate, out))
@@ -405,73 +405,115 @@ def run_farm(
     log = log or (lambda line: None)
 
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler, timeout="20s")
-    # Ship this module's code with the tasks: the workers need `distributed`, not this checkout
-    # on their sys.path. (Run as __main__, cloudpickle sends it by value anyway.)
+    try:
+        with _code_by_value():
+            workers = len(client.scheduler_info().get("workers", {}))
+            log(
+                f"{stamp()} {name}: {len(chunks)} chunk(s) of up to {chunk_size} frame(s), "
+                f"{workers} worker(s) now"
+            )
+            task = (command_prefix, shot, plate, out, extra_args, cwd, timeout)
+            futures = _submit_chunks(client, chunks, task, name, retries)
+            results, failure = _collect(client, futures, len(chunks), log, stamp)
+    finally:
+        address = getattr(getattr(client, "scheduler", None), "address", None) or str(scheduler)
+        if client is not scheduler:
+            client.close()
+
+    path = os.path.join(out, name + ".report.json")
+    farm = {"scheduler": address, "chunk_size": chunk_size, "retries": retries}
+    report = _merged_report(results, failure, frames, path, started, farm)
+    if failure:
+        raise FarmError(f"frames {failure['frames']}: {failure['error']}", failure["bad_input"])
+    log(f"{stamp()} {len(report['frames'])} frame(s) done; report {path}")
+    return report
+
+
+@contextlib.contextmanager
+def _code_by_value():
+    """Ship this module's code with the tasks while inside: the workers need `distributed`,
+    not this checkout on their sys.path (run as __main__, cloudpickle sends it by value
+    anyway); the frames grammar too: a worker has no vr_frames module to import."""
+    import cloudpickle
+
     module = sys.modules[__name__]
     by_value = (
         __name__ != "__main__" and __name__ not in cloudpickle.list_registry_pickle_by_value()
     )
-    # The frames grammar too: a worker has no vr_frames module to import.
     frames_by_value = _frames.__name__ not in cloudpickle.list_registry_pickle_by_value()
-    results, failure = [], None
     try:
         if by_value:
             cloudpickle.register_pickle_by_value(module)
         if frames_by_value:
             cloudpickle.register_pickle_by_value(_frames)
-        workers = len(client.scheduler_info().get("workers", {}))
-        log(
-            f"{stamp()} {name}: {len(chunks)} chunk(s) of up to {chunk_size} frame(s), "
-            f"{workers} worker(s) now"
-        )
-        futures = {}
-        run_id = uuid.uuid4().hex[:8]
-        for spec in chunks:
-            future = client.submit(
-                _chunk_task,
-                command_prefix,
-                shot,
-                plate,
-                out,
-                spec,
-                extra_args,
-                cwd,
-                timeout,
-                key=f"render_shot-{name}-{spec}-{run_id}",
-                retries=retries,
-                pure=False,
-            )
-            futures[future] = spec
-        for done, future in enumerate(as_completed(list(futures)), 1):
-            spec = futures[future]
-            try:
-                result = future.result()
-            except Exception as exc:  # a crash after its retries, or a lost worker (KilledWorker)
-                reason = str(exc).strip().splitlines()[0] if str(exc).strip() else repr(exc)
-                result = {"frames": spec, "error": reason, "bad_input": False}
-            if "error" in result:
-                failure = result
-                client.cancel([f for f in futures if not f.done()])
-                log(f"{stamp()} frames {spec} failed: {result['error']}")
-                break
-            results.append(result)
-            totals = result["report"].get("totals") or {}
-            counts = ", ".join(f"{totals[k]} {k}" for k in ("rendered", "skipped") if k in totals)
-            log(
-                f"{stamp()} {done}/{len(chunks)} frames {spec}: {counts or 'done'} on "
-                f"{result['host']} ({result['worker']}) in {result['seconds']:.1f} s"
-            )
+        yield
     finally:
         if by_value:
             cloudpickle.unregister_pickle_by_value(module)
         if frames_by_value:
             cloudpickle.unregister_pickle_by_value(_frames)
-        address = getattr(getattr(client, "scheduler", None), "address", None) or str(scheduler)
-        if client is not scheduler:
-            client.close()
 
+
+def _submit_chunks(client, chunks, task, name, retries) -> dict:
+    """Submit one `_chunk_task` per chunk of ``chunks`` with the arguments ``task``
+    (command_prefix, shot, plate, out, extra_args, cwd, timeout), each under a key unique to
+    this run, re-run up to ``retries`` times. Returns {future: its chunk}."""
+    command_prefix, shot, plate, out, extra_args, cwd, timeout = task
+    futures = {}
+    run_id = uuid.uuid4().hex[:8]
+    for spec in chunks:
+        future = client.submit(
+            _chunk_task,
+            command_prefix,
+            shot,
+            plate,
+            out,
+            spec,
+            extra_args,
+            cwd,
+            timeout,
+            key=f"render_shot-{name}-{spec}-{run_id}",
+            retries=retries,
+            pure=False,
+        )
+        futures[future] = spec
+    return futures
+
+
+def _collect(client, futures, count, log, stamp):
+    """The chunks' results as they finish, each logged; the first failure (a crash after its
+    retries, a lost worker, bad input) cancels the chunks not yet started. Returns (the
+    results, the failure or None)."""
+    from distributed import as_completed
+
+    results, failure = [], None
+    for done, future in enumerate(as_completed(list(futures)), 1):
+        spec = futures[future]
+        try:
+            result = future.result()
+        except Exception as exc:  # a crash after its retries, or a lost worker (KilledWorker)
+            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else repr(exc)
+            result = {"frames": spec, "error": reason, "bad_input": False}
+        if "error" in result:
+            failure = result
+            client.cancel([f for f in futures if not f.done()])
+            log(f"{stamp()} frames {spec} failed: {result['error']}")
+            break
+        results.append(result)
+        totals = result["report"].get("totals") or {}
+        counts = ", ".join(f"{totals[k]} {k}" for k in ("rendered", "skipped") if k in totals)
+        log(
+            f"{stamp()} {done}/{count} frames {spec}: {counts or 'done'} on "
+            f"{result['host']} ({result['worker']}) in {result['seconds']:.1f} s"
+        )
+    return results, failure
+
+
+def _merged_report(results, failure, frames, path, started, farm) -> dict:
+    """The chunks' reports merged, in frame order, with the report already at ``path`` (a
+    re-run's skipped frames), the ``farm`` fields (scheduler, chunk_size, retries) and the
+    chunks; incomplete with ``failure``. Written to ``path`` (atomic) and returned."""
     results.sort(key=lambda r: parse_frames(r["frames"])[0])
-    path = os.path.join(out, name + ".report.json")
     report = merge_reports(
         [r["report"] for r in results],
         requested=format_frames(parse_frames(frames)),
@@ -479,18 +521,15 @@ def run_farm(
         wall_seconds=time.perf_counter() - started,
     )
     report["farm"] = {
-        "scheduler": address,
-        "chunk_size": chunk_size,
+        "scheduler": farm["scheduler"],
+        "chunk_size": farm["chunk_size"],
         "chunks": [{k: r[k] for k in ("frames", "host", "worker", "seconds")} for r in results],
-        "retries": retries,
+        "retries": farm["retries"],
     }
     if failure:
         report["complete"] = False
         report["farm"]["failed"] = {"frames": failure["frames"], "error": failure["error"]}
     write_json_atomic(path, report)
-    if failure:
-        raise FarmError(f"frames {failure['frames']}: {failure['error']}", failure["bad_input"])
-    log(f"{stamp()} {len(report['frames'])} frame(s) done; report {path}")
     return report
 
 

@@ -54,6 +54,29 @@ def build_parser() -> argparse.ArgumentParser:
         allow_abbrev=False,
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_bench(sub)
+    _add_evaluate(sub)
+    p = sub.add_parser(
+        "scenes", help="3D scenes path-traced in Cycles (docs/scenes3d.md)", allow_abbrev=False
+    )
+    _add_scenes_sets(p)
+    _add_mirror_loop(p)
+    _add_mirror_extras(p)
+    p = sub.add_parser(
+        "sky-prior",
+        help="the ground method's sky gain from the HDRIs (docs/ground.md)",
+        allow_abbrev=False,
+    )
+    p.add_argument(
+        "--polyhaven",
+        action="store_true",
+        help="also derive the mirror's gain on the 15 Poly Haven HDRIs (study/polyhaven.py)",
+    )
+    return parser
+
+
+def _add_bench(sub) -> None:
+    """The `bench` sub-command's parser."""
     p = sub.add_parser(
         "bench", help="time table building and applying against py360convert", allow_abbrev=False
     )
@@ -61,6 +84,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--chart", metavar="PNG", help="also chart time and memory against map and plate size"
     )
+
+
+def _add_evaluate(sub) -> None:
+    """The `evaluate` sub-command's parser."""
     p = sub.add_parser(
         "evaluate", help="accuracy against Blender's HDRIs (docs/accuracy.md)", allow_abbrev=False
     )
@@ -73,9 +100,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--hdri", nargs="+", metavar="NAME", help="only these bundled HDRIs")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
-    p = sub.add_parser(
-        "scenes", help="3D scenes path-traced in Cycles (docs/scenes3d.md)", allow_abbrev=False
-    )
+
+
+def _add_scenes_sets(p) -> None:
+    """`scenes`: which sets, how small, where the outputs go."""
     p.add_argument("--quick", action="store_true", help="two scenes, small: print the means")
     p.add_argument(
         "--out",
@@ -102,6 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
         "turn, and the mirror over every set",
     )
     p.add_argument("--jobs", type=int, default=1, help="processes (only 1: Cycles uses every core)")
+
+
+def _add_mirror_loop(p) -> None:
+    """`scenes`: the fast mirror loop and the panel's settings it runs with."""
     p.add_argument(
         "--mirror-only",
         action="store_true",
@@ -136,6 +168,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --mirror-only: the panel's Contact Shadow in every scene (0..1; default: "
         "the add-on's, 1)",
     )
+
+
+def _add_mirror_extras(p) -> None:
+    """`scenes`: what the fast mirror loop adds (the split, an oracle, another size) and the
+    mirror sheet."""
     p.add_argument(
         "--split",
         action="store_true",
@@ -168,17 +205,6 @@ def build_parser() -> argparse.ArgumentParser:
         "on-set probe | plate mean with PSNR and FLIP (study/scenes3d/sheet.py), written to PNG; "
         "renders cached as --mirror-only's (--cache; --width and --samples: default 320, 32)",
     )
-    p = sub.add_parser(
-        "sky-prior",
-        help="the ground method's sky gain from the HDRIs (docs/ground.md)",
-        allow_abbrev=False,
-    )
-    p.add_argument(
-        "--polyhaven",
-        action="store_true",
-        help="also derive the mirror's gain on the 15 Poly Haven HDRIs (study/polyhaven.py)",
-    )
-    return parser
 
 
 def main(argv=None) -> int:
