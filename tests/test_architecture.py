@@ -34,6 +34,12 @@ And three on the product (its modules and render_shot.py), issue 43 items 1 and 
 9. the command-line layer is defined once, in `virtual_reflections/cli_common.py`: no other
    `EXIT_... = n`, `Terminated` or argparse parser class.
 
+And one on the engine's lookup tables (issue 43, item 2):
+10. a table writes its texels through its layers (`virtual_reflections/layers.py`): no field
+    of `LookupTable` but `fill` is optional (`X | None`), and no engine module tests a table's
+    attribute against None but its `fill` (the ladder of `if table.X is not None` that
+    applied seven optional payloads).
+
 And one on the engine's public surface:
 6. every function or class in `virtual_reflections.__all__` (and every public function of a
    module listed there, as `cache`) has a numpydoc docstring: a one-line summary and, for a
@@ -892,4 +898,70 @@ def test_the_rules_7_to_9_see_what_they_guard(tmp_path):
         f"{ENGINE}/cli.py:2 EXIT_FAILED",
         f"{ENGINE}/cli.py:3 class Terminated",
         f"{ENGINE}/cli.py:5 class _P",
+    ]
+
+
+# --- rule 10: a lookup table writes itself through its layers --------------------------------
+
+TABLE = f"{ENGINE}/table.py"
+
+
+def table_payloads(root: Path) -> list[str]:
+    """Optional fields of LookupTable (in TABLE) but `fill`, and every `table.X is (not) None`
+    test in the engine but on `fill`: "path:line what"."""
+    problems = []
+    package = root / ENGINE
+    for path in sorted(package.glob("*.py")):
+        where = path.relative_to(root).as_posix()
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if where == TABLE and isinstance(node, ast.ClassDef) and node.name == "LookupTable":
+                for item in node.body:
+                    if (
+                        isinstance(item, ast.AnnAssign)
+                        and "None" in ast.unparse(item.annotation)
+                        and item.target.id != "fill"
+                    ):
+                        problems.append(f"{where}:{item.lineno} LookupTable.{item.target.id}")
+            if isinstance(node, ast.Compare) and any(
+                isinstance(op, (ast.Is, ast.IsNot)) for op in node.ops
+            ):
+                left = node.left
+                if (
+                    isinstance(left, ast.Attribute)
+                    and isinstance(left.value, ast.Name)
+                    and left.value.id == "table"
+                    and left.attr != "fill"
+                    and any(
+                        isinstance(c, ast.Constant) and c.value is None for c in node.comparators
+                    )
+                ):
+                    problems.append(f"{where}:{node.lineno} {ast.unparse(node)}")
+    return problems
+
+
+def test_a_lookup_table_writes_itself_through_its_layers():
+    problems = table_payloads(REPO)
+    assert not problems, _report("optional table payloads (make them layers: layers.py)", problems)
+
+
+def test_the_rule_10_sees_the_payload_ladder(tmp_path):
+    """The rule finds the table and the ladder of before issue 43, item 2."""
+    root = _package(
+        tmp_path,
+        {
+            f"{ENGINE}/__init__.py": "",
+            f"{ENGINE}/table.py": "class LookupTable:\n    levels: int\n"
+            "    index: np.ndarray | None\n    fill: Fill | None = None\n"
+            "    trilinear: Trilinear | None = None\n",
+            f"{ENGINE}/envmap.py": "def apply_table(table, out):\n"
+            "    if table.fill is not None:\n        pass\n"
+            "    if table.trilinear is not None and table.index is None:\n        pass\n",
+        },
+    )
+    assert table_payloads(root) == [
+        f"{ENGINE}/envmap.py:4 table.trilinear is not None",
+        f"{ENGINE}/envmap.py:4 table.index is None",
+        f"{ENGINE}/table.py:3 LookupTable.index",
+        f"{ENGINE}/table.py:5 LookupTable.trilinear",
     ]
