@@ -529,56 +529,87 @@ def run_auto_study(config: Config, method: Method, log=None) -> dict:
         for placement in _placements(config):
             bbox = placement.bbox(w, h)
             rot = S.object_view(object_direction(bbox, config.plate_size, hfov))
-            d = max(8, int(round(placement.size * h)))
-            mask = S.sphere_mask(d)
-            probe = S.Probe(d, rot, mirror_samples=4)
-            t_mirror = M.to_display(probe.mirror(truth))
-            row = {"hdri": hdri, "placement": placement.name, "object_px": d}
-            renders, truth_renders = {}, {}
-            for width in AUTO_WIDTHS:
-                env = method.fn(plate, bbox, hfov, width)
-                renders[width] = M.to_display(probe.mirror(env))
-                truth_renders[width] = M.to_display(probe.mirror(S.resample_latlong(truth, width)))
-            top = AUTO_WIDTHS[-1]
-            # against the truth; against the method's own widest map (what resolution loses of
-            # the method's detail); the truth map itself at each width (what any method loses)
-            for key, ref, got in (
-                ("psnr", t_mirror, renders),
-                ("self_psnr", renders[top], renders),
-                ("truth_psnr", t_mirror, truth_renders),
-            ):
-                row[key] = {str(w): min(M.psnr(got[w], ref, mask), PSNR_CAP) for w in AUTO_WIDTHS}
-            row["auto_width"] = auto_map_width(d)
-            resolution.append(row)
-
-            size = config.sphere_size
-            smask = S.sphere_mask(size)
-            truth_g = S.glossy_sphere(None, size, view=rot, prefiltered=truth_glossy)
-            truth_d = S.diffuse_sphere_exact(None, size, view=rot, irradiance=truth_diffuse)
-            full = method.fn(plate, bbox, hfov, config.map_width)
-            small = method.fn(plate, bbox, hfov, 128)
-            tiny = method.fn(plate, bbox, hfov, 32)
-            candidates = {
-                "glossy full map": S.glossy_sphere(full, size, view=rot),
-                "glossy prefiltered 128": S.glossy_sphere(
-                    None, size, view=rot, prefiltered=S.prefilter(small, S.GLOSSY_EXPONENT, 128)
-                ),
-                "diffuse full map": S.diffuse_sphere_exact(full, size, view=rot),
-                "diffuse SH9 full map": S.diffuse_sphere(full, size, view=rot),
-                "diffuse SH9 128": S.diffuse_sphere(small, size, view=rot),
-                "diffuse SH9 32": S.diffuse_sphere(tiny, size, view=rot),
-            }
-            entry = {"hdri": hdri, "placement": placement.name}
-            for name, img in candidates.items():
-                t = truth_g if name.startswith("glossy") else truth_d
-                entry[name] = {
-                    "psnr": min(M.psnr(M.to_display(img), M.to_display(t), smask), PSNR_CAP),
-                    "si_rmse": M.si_rmse(img, t, smask),
-                }
-            rough.append(entry)
+            row = _resolution_row(config, method, plate, truth, bbox, hfov, rot, placement)
+            resolution.append({"hdri": hdri, **row})
+            entry = _rough_entry(
+                config, method, plate, bbox, hfov, rot, truth_glossy, truth_diffuse
+            )
+            rough.append({"hdri": hdri, "placement": placement.name, **entry})
         say(f"auto: {hdri}")
-    # Costs, on the first view's centred object.
-    hdri, heading, pitch, hfov = views[0]
+    width_cost, rough_cost = _auto_costs(config, method, views[0])
+    return {
+        "method": method.name,
+        "widths": list(AUTO_WIDTHS),
+        "resolution": resolution,
+        "width_cost": {str(k): v for k, v in width_cost.items()},
+        "rough": rough,
+        "rough_cost_ms": rough_cost,
+    }
+
+
+def _resolution_row(config, method, plate, truth, bbox, hfov, rot, placement) -> dict:
+    """`run_auto_study`'s resolution row for one object: the mirror sphere at its size on
+    screen from maps of every width in AUTO_WIDTHS, against the truth, against the method's
+    widest map and the truth map at each width, and the width `auto_map_width` picks."""
+    d = max(8, int(round(placement.size * config.plate_size[1])))
+    mask = S.sphere_mask(d)
+    probe = S.Probe(d, rot, mirror_samples=4)
+    t_mirror = M.to_display(probe.mirror(truth))
+    row = {"placement": placement.name, "object_px": d}
+    renders, truth_renders = {}, {}
+    for width in AUTO_WIDTHS:
+        env = method.fn(plate, bbox, hfov, width)
+        renders[width] = M.to_display(probe.mirror(env))
+        truth_renders[width] = M.to_display(probe.mirror(S.resample_latlong(truth, width)))
+    top = AUTO_WIDTHS[-1]
+    # against the truth; against the method's own widest map (what resolution loses of
+    # the method's detail); the truth map itself at each width (what any method loses)
+    for key, ref, got in (
+        ("psnr", t_mirror, renders),
+        ("self_psnr", renders[top], renders),
+        ("truth_psnr", t_mirror, truth_renders),
+    ):
+        row[key] = {str(w): min(M.psnr(got[w], ref, mask), PSNR_CAP) for w in AUTO_WIDTHS}
+    row["auto_width"] = auto_map_width(d)
+    return row
+
+
+def _rough_entry(config, method, plate, bbox, hfov, rot, truth_glossy, truth_diffuse) -> dict:
+    """`run_auto_study`'s rough entry for one object: matte-silver and diffuse spheres from the
+    full map and from cheap light (a pre-filtered 128-wide map, SH9 of 128- and 32-wide maps),
+    PSNR and si-RMSE against the exact convolutions of the truth."""
+    size = config.sphere_size
+    smask = S.sphere_mask(size)
+    truth_g = S.glossy_sphere(None, size, view=rot, prefiltered=truth_glossy)
+    truth_d = S.diffuse_sphere_exact(None, size, view=rot, irradiance=truth_diffuse)
+    full = method.fn(plate, bbox, hfov, config.map_width)
+    small = method.fn(plate, bbox, hfov, 128)
+    tiny = method.fn(plate, bbox, hfov, 32)
+    candidates = {
+        "glossy full map": S.glossy_sphere(full, size, view=rot),
+        "glossy prefiltered 128": S.glossy_sphere(
+            None, size, view=rot, prefiltered=S.prefilter(small, S.GLOSSY_EXPONENT, 128)
+        ),
+        "diffuse full map": S.diffuse_sphere_exact(full, size, view=rot),
+        "diffuse SH9 full map": S.diffuse_sphere(full, size, view=rot),
+        "diffuse SH9 128": S.diffuse_sphere(small, size, view=rot),
+        "diffuse SH9 32": S.diffuse_sphere(tiny, size, view=rot),
+    }
+    entry = {}
+    for name, img in candidates.items():
+        t = truth_g if name.startswith("glossy") else truth_d
+        entry[name] = {
+            "psnr": min(M.psnr(M.to_display(img), M.to_display(t), smask), PSNR_CAP),
+            "si_rmse": M.si_rmse(img, t, smask),
+        }
+    return entry
+
+
+def _auto_costs(config, method, first_view):
+    """`run_auto_study`'s costs on the first view's centred object: (each map width's build
+    times, each rough candidate's median ms: its map cold plus its filtering)."""
+    w, h = config.plate_size
+    hdri, heading, pitch, hfov = first_view
     view = make_view(hdri, heading, pitch, hfov, config.plate_size, 256)
     plate = view.plates["exr"]
     bbox = PLACEMENTS[0].bbox(w, h)
@@ -609,14 +640,7 @@ def run_auto_study(config: Config, method: Method, log=None) -> dict:
     rough_cost = {
         name: width_cost[map_width_of[name]]["cold_ms"] + filter_cost[name] for name in filter_cost
     }
-    return {
-        "method": method.name,
-        "widths": list(AUTO_WIDTHS),
-        "resolution": resolution,
-        "width_cost": {str(k): v for k, v in width_cost.items()},
-        "rough": rough,
-        "rough_cost_ms": rough_cost,
-    }
+    return width_cost, rough_cost
 
 
 # --- summaries -----------------------------------------------------------------------------
