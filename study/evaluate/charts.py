@@ -262,6 +262,20 @@ def chart_auto(results: Results, path) -> None:
     widths = auto["widths"]
     cost = [auto["width_cost"][str(w)]["cold_ms"] for w in widths]
     fig, axes = plt.subplots(1, 3, figsize=(17, 5))
+    _auto_width_panels(plt, axes, summ, widths, cost)
+    _auto_rough_panel(axes[2], summ, auto)
+    fig.suptitle(
+        f"Model no more than a scene needs ({auto['method']}, float plates, HDR truth)", fontsize=11
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _auto_width_panels(plt, axes, summ, widths, cost) -> None:
+    """`chart_auto`'s first two panels: per object size, PSNR against the method's widest map
+    and the true map's (left), against the truth less the best width's with the cold time per
+    map (right); a star at the automatic width."""
     cmap = plt.get_cmap("viridis")
     sizes = sorted(summ["resolution"])
     for k, d in enumerate(sizes):
@@ -310,13 +324,16 @@ def chart_auto(results: Results, path) -> None:
     ax2.plot(widths, cost, color="black", alpha=0.4, linestyle="--", marker=".")
     ax2.set_yscale("log")
     ax2.set_ylabel("cold time per map (ms, dashed)")
-    # rough and diffuse
+
+
+def _auto_rough_panel(ax, summ, auto) -> None:
+    """`chart_auto`'s third panel: each rough and diffuse candidate's PSNR less the full map's,
+    labelled with its milliseconds per object."""
     rough = summ["rough"]
     names = list(rough)
     costs = [auto["rough_cost_ms"][n] for n in names]
     ref = {"glossy": rough["glossy full map"]["psnr"], "diffuse": rough["diffuse full map"]["psnr"]}
     deltas = [rough[n]["psnr"] - ref[n.split()[0]] for n in names]
-    ax = axes[2]
     bars = ax.barh(
         names, deltas, color=["#1f77b4" if n.startswith("glossy") else "#2ca02c" for n in names]
     )
@@ -334,12 +351,6 @@ def chart_auto(results: Results, path) -> None:
     ax.set_title("rough and diffuse light (label: ms per object)", fontsize=9)
     ax.invert_yaxis()
     ax.grid(alpha=0.3, axis="x")
-    fig.suptitle(
-        f"Model no more than a scene needs ({auto['method']}, float plates, HDR truth)", fontsize=11
-    )
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def chart_spheres(
