@@ -317,6 +317,46 @@ def run_command(
     sheet (`run_sheet`), written to that PNG (with ``cache``, ``width`` and ``samples``)."""
     if sheet is not None:
         return run_sheet(sheet, cache=cache, width=width, samples=samples, log=log), {}
+    options = dict(
+        cache=cache,
+        sky_gain=sky_gain,
+        split=split,
+        surroundings=surroundings,
+        oracle=oracle,
+        contact_shadow=contact_shadow,
+    )
+    _check_options(jobs, cases, mirror_only, width=width, samples=samples, **options)
+    if cases == "all":
+        return run_all(quick, out, log, mirror_only, width=width, samples=samples, **options)
+    if cases == "motion":  # the sequences (motion.py): their own outputs
+        from . import motion_report
+
+        try:
+            return motion_report.run_command(quick=quick, out=out, log=log), {}
+        except motion_report.MotionInputError as exc:
+            raise ScenesInputError(str(exc)) from exc
+    config = _config(cases, quick, mirror_only, width, samples, log)
+    if mirror_only:
+        return _mirror_command(config, out, log, **options)
+    return _study_command(config, quick, out, log)
+
+
+def _check_options(
+    jobs,
+    cases,
+    mirror_only,
+    *,
+    cache,
+    sky_gain,
+    split,
+    surroundings,
+    oracle,
+    contact_shadow,
+    width,
+    samples,
+) -> None:
+    """Raise `ScenesInputError` for an option out of its range, one that goes only with
+    --mirror-only, or --sky-gain with --surroundings."""
     if not mirror_only and (
         cache is not None
         or sky_gain is not None
@@ -355,28 +395,11 @@ def run_command(
         )
     if cases not in CASES:
         raise ScenesInputError(f"--cases: one of {', '.join(CASES)}, not {cases!r}")
-    if cases == "all":
-        return run_all(
-            quick,
-            out,
-            log,
-            mirror_only,
-            cache=cache,
-            sky_gain=sky_gain,
-            split=split,
-            surroundings=surroundings,
-            oracle=oracle,
-            contact_shadow=contact_shadow,
-            width=width,
-            samples=samples,
-        )
-    if cases == "motion":  # the sequences (motion.py): their own outputs
-        from . import motion_report
 
-        try:
-            return motion_report.run_command(quick=quick, out=out, log=log), {}
-        except motion_report.MotionInputError as exc:
-            raise ScenesInputError(str(exc)) from exc
+
+def _config(cases, quick, mirror_only, width, samples, log) -> Config:
+    """The set's `Config` at ``width`` and ``samples`` if given; the Poly Haven HDRIs fetched
+    for their set; `ScenesInputError` for a set that does not go with ``mirror_only``."""
     config = CONFIGS[cases, bool(quick)]
     if width is not None or samples is not None:
         config = dataclasses.replace(
@@ -391,44 +414,45 @@ def run_command(
             polyhaven.ensure(log=log or (lambda line: print(line, file=sys.stderr, flush=True)))
         except polyhaven.PolyHavenError as exc:
             raise ScenesInputError(str(exc)) from exc
-    if mirror_only:
-        if cases not in ("default", "heldout", "more", "polyhaven"):
-            raise ScenesInputError(
-                "--mirror-only runs the default, the held-out, the more or the Poly Haven "
-                "scenes only"
-            )
-        data = run_mirror(
-            config,
-            cache=cache,
-            log=log,
-            sky_gain=sky_gain,
-            split=split,
-            surroundings=surroundings,
-            oracle=oracle,
-            contact_shadow=contact_shadow,
+    if mirror_only and cases not in ("default", "heldout", "more", "polyhaven"):
+        raise ScenesInputError(
+            "--mirror-only runs the default, the held-out, the more or the Poly Haven scenes only"
         )
-        from . import mirror, prior_colour, prior_level  # bpy is importable: run_mirror said so
+    return config
 
-        print(mirror.table(data))
-        if split:
-            print()
-            print(mirror.split_table(data))
-            print()
-            print(prior_level.statistic_table(data))
-            print(prior_level.scene_gains_line(data))
-            print()
-            print(prior_colour.colour_table(data))
-        if oracle is not None:
-            print()
-            print(mirror.oracle_table(data, oracle))
-        print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
-        if out:
-            target = pathlib.Path(out)
-            target.mkdir(parents=True, exist_ok=True)
-            path = target / (config.name.replace("scenes3d", "scenes3d_mirror") + ".json")
-            path.write_text(json.dumps(_json_safe(data), indent=1) + "\n")
-            print(f"wrote {path}", file=sys.stderr)
-        return data, {}
+
+def _mirror_command(config, out, log, **options):
+    """`run_command` with --mirror-only: the fast mirror loop (`run_mirror` with ``options``),
+    its tables printed and, with ``out``, OUT/scenes3d_mirror(_quick).json written."""
+    split, oracle = options["split"], options["oracle"]
+    data = run_mirror(config, log=log, **options)
+    from . import mirror, prior_colour, prior_level  # bpy is importable: run_mirror said so
+
+    print(mirror.table(data))
+    if split:
+        print()
+        print(mirror.split_table(data))
+        print()
+        print(prior_level.statistic_table(data))
+        print(prior_level.scene_gains_line(data))
+        print()
+        print(prior_colour.colour_table(data))
+    if oracle is not None:
+        print()
+        print(mirror.oracle_table(data, oracle))
+    print(f"{len(data['scenes'])} scenes in {data['seconds']:.0f} s")
+    if out:
+        target = pathlib.Path(out)
+        target.mkdir(parents=True, exist_ok=True)
+        path = target / (config.name.replace("scenes3d", "scenes3d_mirror") + ".json")
+        path.write_text(json.dumps(_json_safe(data), indent=1) + "\n")
+        print(f"wrote {path}", file=sys.stderr)
+    return data, {}
+
+
+def _study_command(config, quick, out, log):
+    """`run_command` for every method: the study run, its table printed and, into ``out``
+    (default docs for the full set; nothing for --quick unless given), its outputs written."""
     target = pathlib.Path(out) if out else (None if quick else pathlib.Path("docs"))
     if target is not None:
         try:

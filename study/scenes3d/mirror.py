@@ -78,9 +78,72 @@ def run_scene(
     folder = cache / f"{spec.name}-{cache_key(spec, width, samples)}"
     hit = all((folder / name).is_file() for name in CACHED)
     folder.mkdir(parents=True, exist_ok=True)
-    renders = 0
     border = run.subject_border(scene, camera, subject)
     crop = run.border_pixels(border, width, height)
+    plate, truth, plate8, mean, seen, renders = _plate_truth_and_mean(
+        scene, subject, others, dome, material, folder, hit, border, probe
+    )
+    label, method, dark, report, seconds, count = _default_mirror(
+        spec, addon, scene, subject, folder, work, border, surroundings, contact_shadow, split
+    )
+    renders += count
+    rows = {}
+    if oracle is not None:
+        rendered, count = oracles.render_rows(
+            oracle, scene, subject, others, addon, folder, work, spec.name, border
+        )
+        rows = dict(zip(oracles.labels(label, oracle), rendered))
+        renders += count
+
+    mask = mean[..., 3] > 0.5
+    named = ((label, method), *rows.items(), *seen.items(), (run.MEAN, mean))
+    results, crops, composites = _scored(named, plate, truth, mask, crop)
+    record = {
+        "scene": spec.to_json(),
+        "subject_pixels": int(mask.sum()),
+        "results": {MIRROR: results},
+        "generate_s": {label: {"REPLACE": seconds}},
+        "finite": {label: bool(np.isfinite(method).all())},
+        "warnings": {label: list(report.warnings)} if report.warnings else {},
+        "renders": renders,
+        "cached": hit,
+        "seconds": time.perf_counter() - started,
+        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
+        "surroundings": scene.virtual_reflections.surroundings,
+    }
+    if dark is not None:
+        record["split"] = _split(
+            composites, dark, plate, truth, mask, crop, results, label, plate8, spec
+        )
+    log(
+        f"{spec.name}: {mask.sum()} px, mirror PSNR {label} {results[label]['psnr']:.2f}, "
+        f"plate mean {results[run.MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, {renders} "
+        f"renders{', cached' if hit else ''})"
+    )
+    return record, crops
+
+
+def _scored(renders, plate, truth, mask, crop):
+    """Each (label, RGBA render) of ``renders`` composited over ``plate`` and scored against
+    ``truth`` on ``mask``, and the plate itself: (scores, display crops with the truth's,
+    composites), each by label."""
+    results, crops, composites = {}, {}, {}
+    y0, y1, x0, x1 = crop
+    for name, rgba in renders:
+        composite = composites[name] = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
+        results[name] = run.score(composite, truth, mask, crop)
+        crops[name] = run.to_display(composite[y0:y1, x0:x1])
+    results["(plate itself)"] = run.score(plate, truth, mask, crop)
+    crops["Truth"] = run.to_display(truth[y0:y1, x0:x1])
+    return results, crops, composites
+
+
+def _plate_truth_and_mean(scene, subject, others, dome, material, folder, hit, border, probe):
+    """The plate, the mirror truth, the 8-bit plate (linear), the plate mean's mirror and, with
+    ``probe``, the on-set probe's (in a dict by its label), rendered into ``folder`` or read
+    from it (``hit``), and how many were rendered. Leaves the neighbours hidden from render,
+    the film transparent and the dome the world."""
+    renders = 0
     if not hit:
         subject.hide_render = True
         scene.render.film_transparent = False
@@ -112,7 +175,17 @@ def run_scene(
         else:
             seen[run.PROBE] = run.render(scene, path, border)
             renders += 1
+    return plate, truth, plate8, mean, seen, renders
 
+
+def _default_mirror(
+    spec, addon, scene, subject, folder, work, border, surroundings, contact_shadow, split
+):
+    """The default method's mirror (Replace look, the 8-bit plate, Auto resolution, the
+    panel's ``surroundings`` and ``contact_shadow`` if given): Generate timed, then its render;
+    with ``split`` the same maps with the sky prior black rendered too. Returns (the method's
+    label, its render, the black-sky render or None, Generate's report, its seconds, the
+    number of renders)."""
     label = run.default_method_label(addon)
     settings = scene.virtual_reflections
     settings.plate_image = bpy.data.images.load(str(folder / "plate.png"))
@@ -133,7 +206,7 @@ def run_scene(
         raise RuntimeError(f"{spec.name}: Generate ({label}) made nothing: {report.warnings}")
     work.mkdir(parents=True, exist_ok=True)
     method = run.render(scene, work / f"{spec.name} {label}.exr", border)
-    renders += 1
+    renders = 1
     addon.generate.remove_all()
     dark = None
     if split:  # the same maps with the sky prior black: the pixels it sets are those that change
@@ -145,54 +218,24 @@ def run_scene(
         dark = run.render(scene, work / f"{spec.name} {label} sky 0.exr", border)
         renders += 1
         addon.generate.remove_all()
+    return label, method, dark, report, seconds, renders
 
-    rows = {}
-    if oracle is not None:
-        rendered, count = oracles.render_rows(
-            oracle, scene, subject, others, addon, folder, work, spec.name, border
-        )
-        rows = dict(zip(oracles.labels(label, oracle), rendered))
-        renders += count
 
-    mask = mean[..., 3] > 0.5
-    results, crops, composites = {}, {}, {}
-    y0, y1, x0, x1 = crop
-    for name, rgba in ((label, method), *rows.items(), *seen.items(), (run.MEAN, mean)):
-        composite = composites[name] = rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate
-        results[name] = run.score(composite, truth, mask, crop)
-        crops[name] = run.to_display(composite[y0:y1, x0:x1])
-    results["(plate itself)"] = run.score(plate, truth, mask, crop)
-    crops["Truth"] = run.to_display(truth[y0:y1, x0:x1])
-    record = {
-        "scene": spec.to_json(),
-        "subject_pixels": int(mask.sum()),
-        "results": {MIRROR: results},
-        "generate_s": {label: {"REPLACE": seconds}},
-        "finite": {label: bool(np.isfinite(method).all())},
-        "warnings": {label: list(report.warnings)} if report.warnings else {},
-        "renders": renders,
-        "cached": hit,
-        "seconds": time.perf_counter() - started,
-        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
-        "surroundings": settings.surroundings,
-    }
-    if dark is not None:
-        black = dark[..., :3] + (1.0 - dark[..., 3:4]) * plate
-        record["split"] = error_split(composites, black, truth, mask, label)
-        record["split"]["prior_scales"] = prior_level.scale_curve(
-            composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"]
-        )
-        record["split"]["band"] = prior_level.band_levels(plate8, spec.hfov_deg(), spec.pitch_deg)
-        record["split"]["tints"] = prior_colour.tint_scores(
-            composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"],
-            record["plate_mean"],
-        )  # fmt: skip
-    log(
-        f"{spec.name}: {mask.sum()} px, mirror PSNR {label} {results[label]['psnr']:.2f}, "
-        f"plate mean {results[run.MEAN]['psnr']:.2f} ({record['seconds']:.0f} s, {renders} "
-        f"renders{', cached' if hit else ''})"
+def _split(composites, dark, plate, truth, mask, crop, results, label, plate8, spec) -> dict:
+    """The record's "split": `error_split` of the default against its black-sky render
+    ``dark``, with the PSNR over the plate mean at every scale of the prior
+    (`prior_level.scale_curve`), the ground band's levels and every tint of the prior."""
+    black = dark[..., :3] + (1.0 - dark[..., 3:4]) * plate
+    split = error_split(composites, black, truth, mask, label)
+    split["prior_scales"] = prior_level.scale_curve(
+        composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"]
     )
-    return record, crops
+    split["band"] = prior_level.band_levels(plate8, spec.hfov_deg(), spec.pitch_deg)
+    split["tints"] = prior_colour.tint_scores(
+        composites[label], black, truth, mask, crop, results[run.MEAN]["psnr"],
+        [float(c) for c in plate8.reshape(-1, 3).mean(0)],
+    )  # fmt: skip
+    return split
 
 
 SPLIT_CHANGE = 0.02  # display units: a pixel the sky prior sets changes more than this with it off
