@@ -155,23 +155,7 @@ def run_bench(repeat: int = 15) -> dict:
         if p360 is not None:
             calls["peer"] = (forced, _peer_call(p360, plate, size))
         calls["plate copy"] = (forced, plate.copy)
-        times = {k: [] for k in calls}
-        keys = list(calls)
-        warm = max(3, repeat // 3)  # rounds not recorded: the first ones run slower (~20 %)
-        try:
-            for i in range(-warm, repeat):
-                # Interleaved, every call sees the same load; the order turned by one each
-                # time, so no call always follows the same one (the plate copy leaves 25 MB
-                # of written cache lines that whatever runs next writes back: ~2 ms).
-                for k in keys[i % len(keys) :] + keys[: i % len(keys)]:
-                    gather, fn = calls[k]
-                    _set_gather(gather)
-                    t = time.perf_counter()
-                    fn()
-                    if i >= 0:
-                        times[k].append(time.perf_counter() - t)
-        finally:
-            _set_gather(forced)
+        times = _rounds(calls, repeat, forced)
         ms = {k: 1000.0 * float(np.median(v)) for k, v in times.items()}
         line = ", ".join(f"{k} {v:.1f} ms" for k, v in ms.items())
         print(f"  {size}x{size // 2}: {line}")
@@ -190,6 +174,36 @@ def run_bench(repeat: int = 15) -> dict:
                     )
         figures[f"peer {size}"] = ms.get("peer")
         figures[f"copy {size}"] = ms["plate copy"]
+    _cold_figures(figures, repeat)
+    return figures
+
+
+def _rounds(calls, repeat, forced) -> dict:
+    """Time each of ``calls`` ({key: (VR_GATHER for it, the call)}) in interleaved rounds, the
+    first ones not recorded; VR_GATHER back to ``forced`` after. Returns {key: [seconds]}."""
+    times = {k: [] for k in calls}
+    keys = list(calls)
+    warm = max(3, repeat // 3)  # rounds not recorded: the first ones run slower (~20 %)
+    try:
+        for i in range(-warm, repeat):
+            # Interleaved, every call sees the same load; the order turned by one each
+            # time, so no call always follows the same one (the plate copy leaves 25 MB
+            # of written cache lines that whatever runs next writes back: ~2 ms).
+            for k in keys[i % len(keys) :] + keys[: i % len(keys)]:
+                gather, fn = calls[k]
+                _set_gather(gather)
+                t = time.perf_counter()
+                fn()
+                if i >= 0:
+                    times[k].append(time.perf_counter() - t)
+    finally:
+        _set_gather(forced)
+    return times
+
+
+def _cold_figures(figures, repeat) -> None:
+    """`run_bench`'s cold tables on the 4K plate, printed and added to ``figures``: time, peak
+    memory and bytes per texel per method and map width."""
     width, height = PLATES["4K"]
     print(f"\ncold table (new bounds or camera): {width}x{height} plate")
     for size in (2048, 4096):
@@ -209,7 +223,6 @@ def run_bench(repeat: int = 15) -> dict:
                 f"  {m:6s} {size}x{size // 2}: {cold:7.0f} ms (target <= {target}), "
                 f"peak {peak:6.0f} MB, table {per_texel:5.1f} bytes/texel (target <= 16)"
             )
-    return figures
 
 
 def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), plates=None):
@@ -222,6 +235,16 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
 
     plates = plates or list(PLATES)
     p360, peer_name = _peer()
+    rows = _sweep_rows(plates, widths, repeat, p360, peer_name)
+    _chart_sweep(plt, rows, plates, widths, path, peer_name)
+    print(f"wrote {path}")
+    return rows
+
+
+def _sweep_rows(plates, widths, repeat, p360, peer_name) -> list:
+    """`run_sweep`'s measures, printed as they come: per plate and map width, each method's
+    cold table and per-frame times and its table's bytes, the plate's pyramid, and the peer's
+    time on the first plate (``p360``: its module, or None)."""
     rows = []
     print(_machine())
     print(f"peer: {peer_name}; ours: the {backend()} back end (VR_GATHER picks another)")
@@ -249,6 +272,12 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
             )
         del plate
         gc.collect()
+    return rows
+
+
+def _chart_sweep(plt, rows, plates, widths, path, peer_name) -> None:
+    """`run_sweep`'s chart of ``rows`` into ``path``: per frame, cold table and memory against
+    the map width, one line per method and plate (the peer's dotted)."""
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), dpi=100)
     styles = {"1080p": "o", "4K": "s", "8K": "^"}
     for name in plates:
@@ -311,5 +340,3 @@ def run_sweep(path: str, repeat: int = 5, widths=(256, 512, 1024, 2048, 4096), p
     )
     fig.tight_layout()
     fig.savefig(path)
-    print(f"wrote {path}")
-    return rows
