@@ -13,8 +13,9 @@ import bpy
 from bpy.props import EnumProperty, IntProperty
 
 from . import dependencies
-from .operators import maps, shading, world
-from .operators.choices import (
+from .operators.node_trees import shading, world
+from .operators.scene import maps
+from .operators.scene.choices import (
     COMBINE_ITEMS,
     DEFAULTS,
     MAP_FOLDER_ITEMS,

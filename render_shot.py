@@ -18,7 +18,7 @@ DIR/<shot>.<frame:04d>.exr|png (--format; PNG through the scene's view transform
 report), the CG element DIR/<shot>_render.<frame:04d>.exr (the render alone, RGBA
 scene-linear), a progress line, and the report DIR/<shot>.report.json (--report PATH)
 rewritten after each frame. Frames already complete, and made by the same inputs (a record per
-frame: the plate file, the settings, the extension's version; operators/batch_record.py), are
+frame: the plate file, the settings, the extension's version; operators/batch/record.py), are
 skipped unless --overwrite; a complete frame made by other inputs is rendered again and the
 report says why. Every file is written under a temporary name and renamed, so a killed run
 leaves no half-written frame and resumes where it stopped.
@@ -33,8 +33,8 @@ files). Bad input (a bad range, a missing plate frame, an unwritable folder, a -
 is an input, an output or a file other than a report): one line on stderr, exit code 2,
 nothing written.
 
-The options are `BatchOptions`' fields (operators/batch_options.py): the parser is built from
-them, and what it parses goes to the batch (operators/batch.py) as one `BatchOptions`, checked
+The options are `BatchOptions`' fields (operators/batch/options.py): the parser is built from
+them, and what it parses goes to the batch (operators/batch/shot.py) as one `BatchOptions`, checked
 once when it is made, right after parsing. Exit codes, `Terminated` and the one-line parser
 are the engine's command line's too (virtual_reflections/cli_common.py).
 
@@ -92,7 +92,8 @@ def _addon():
 
 
 def _part(name):
-    """The add-on's module ``name`` (``operators.batch``, ``virtual_reflections.cli_common``)."""
+    """The add-on's module ``name`` (``operators.batch.shot``,
+    ``virtual_reflections.cli_common``)."""
     return import_module(f"{_package().__name__}.{name}")
 
 
@@ -128,9 +129,9 @@ def parse(argv):
 
 def parser():
     """The command line's options, each with its help: BatchOptions' fields
-    (operators/batch_options.py)."""
+    (operators/batch/options.py)."""
     p = _common().Parser(prog=NAME, description=__doc__.splitlines()[0], allow_abbrev=False)
-    _part("operators.batch_options").add_arguments(p)
+    _part("operators.batch.options").add_arguments(p)
     return p
 
 
@@ -155,7 +156,7 @@ def main(argv=None):
         if _missing(addon):
             return common.EXIT_BAD_INPUT
         options = batch_options(addon, args)
-        with _module(addon, "operators.batch_signals").stop_on_signals():
+        with _module(addon, "operators.batch.signals").stop_on_signals():
             return run(bpy, addon, own, options)
     except (ValueError, OSError, RuntimeError) as exc:
         common.error_line(NAME, exc)
@@ -164,7 +165,7 @@ def main(argv=None):
         message = str(exc) or "out of memory (a smaller --scale or plate, or a bigger machine)"
         common.error_line(NAME, message)
         return common.EXIT_FAILED
-    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, batch_signals.Interrupted)
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM (Terminated, signals.Interrupted)
         code = common.stopped(NAME, exc)
         # The run ends where it stopped: what it left half made (a kernel the optional
         # compiled back end was compiling) may fail in its destructor on the way out; print
@@ -205,14 +206,14 @@ def _missing_dependency(exc):
 
 
 def _module(addon, name):
-    """The add-on's module ``name`` (``operators.batch``)."""
+    """The add-on's module ``name`` (``operators.batch.shot``)."""
     return import_module(f"{addon.__name__}.{name}")
 
 
 def batch_options(addon, args):
     """The parsed command line as the add-on's BatchOptions; ValueError (one line) if an
     option is bad, before the shot is opened."""
-    return _module(addon, "operators.batch_options").BatchOptions.from_namespace(args)
+    return _module(addon, "operators.batch.options").BatchOptions.from_namespace(args)
 
 
 def run(bpy, addon, own, options):
@@ -225,7 +226,7 @@ def run(bpy, addon, own, options):
     if registered:
         addon.register()
     try:
-        return _module(addon, "operators.batch").render_shot(options, started)
+        return _module(addon, "operators.batch.shot").render_shot(options, started)
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while classes stay registered
             addon.unregister()

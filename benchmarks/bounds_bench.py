@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bounds_bench.py
 
-Prints medians of 20 calls to operators.bounds.object_bounds, for a grid entirely in front of
+Prints medians of 20 calls to operators.scene.bounds.object_bounds, for a grid entirely in front of
 the camera and for one that straddles the near plane (its 2M edges are read and clipped).
 """
 
@@ -17,7 +17,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def main():
-    spec = importlib.util.spec_from_file_location("vr_bounds", ROOT / "operators/bounds.py")
+    spec = importlib.util.spec_from_file_location("vr_bounds", ROOT / "operators/scene/bounds.py")
     bounds = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bounds)
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)

@@ -1,4 +1,4 @@
-"""Benchmark: finding the floor under the reflective objects (operators/floor.py), which
+"""Benchmark: finding the floor under the reflective objects (operators/scene/floor.py), which
 Camera View + Ground does at every Generate and every Live Update rebuild.
 
     .venv/bin/python benchmarks/floor_bench.py [--objects 3000] [--repeat 20]
@@ -37,7 +37,7 @@ def main():
     args = parser.parse_args()
     addon = load_addon()
     try:
-        floor = sys.modules[f"{addon.__name__}.operators.floor"]
+        floor = sys.modules[f"{addon.__name__}.operators.scene.floor"]
         bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
         scene = bpy.context.scene
         cube = bpy.data.meshes.new("Cube")

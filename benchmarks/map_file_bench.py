@@ -25,8 +25,8 @@ sys.path.insert(
 )
 from shots import addon_part  # noqa: E402
 
-maps = addon_part("operators.maps")
-images = addon_part("operators.images")
+maps = addon_part("operators.scene.maps")
+images = addon_part("operators.scene.images")
 
 
 def describe(path, env):

@@ -1,7 +1,7 @@
 """Benchmark: the engine's blocks of rows (`parallel.for_blocks`, its own daemon threads)
 against the standard library's ThreadPoolExecutor doing the same blocks, in the same run.
 
-The work is the map image's copy into Blender's layout (operators/images.py
+The work is the map image's copy into Blender's layout (operators/scene/images.py
 `_rgba_bottom_up`): rows bottom-up, alpha 1, channel by channel, in blocks of 8-16 rows,
 on maps of 1024 x 512 (resolution 1024) and 4096 x 2048. Printed: the median of each, and
 the ratio of for_blocks to the executor.

@@ -177,7 +177,7 @@ def measure(addon, build_scenes, render_sample, args):
     from importlib import import_module
 
     interreflect = import_module(addon.__name__ + ".operators.interreflect")
-    plates = import_module(addon.__name__ + ".operators.plate")
+    plates = import_module(addon.__name__ + ".operators.scene.plate")
     engine = import_module(addon.__name__ + ".virtual_reflections")
     quiet = render_sample.renderer_quiet
 

@@ -1,23 +1,31 @@
-"""The Blender layer: everything that touches bpy data, in layers that import only downward
+"""The Blender layer: everything that touches bpy data, in rooms that import only downward
 (docs/architecture.md):
 
-    choices, images, bounds                  -- no other module of the add-on
-    undo_pixels                              -- maps' pixels back after undo and redo
-    plate, shading, maps, compositor         -- Blender data helpers
+    scene/                                   -- the scene's data: plate, images, bounds, floor,
+                                                maps, colour, choices, the file's handlers
+    node_trees/                              -- the node groups, materials and world
     pipeline                                 -- the one way a map is built
     generate, sequence, live, previews,      -- features
-    interreflect
-    batch                                    -- the headless entry (render_shot.py)
+    interreflect, traced_pass, reflection_snapshot, compositor
+    batch/                                   -- the headless entry (render_shot.py)
     ops                                      -- the operators
 
 Only modules with something to register are listed here, in that order. They are imported
 when the add-on registers, not with this package: render_shot.py reads the batch's options
-(batch_options, no bpy) before Blender's modules are there.
+(batch/options.py, no bpy) before Blender's modules are there.
 """
 
 from importlib import import_module
 
-_MODULES = ("undo_pixels", "shading", "maps", "sequence", "live", "previews", "ops")
+_MODULES = (
+    "scene.undo_pixels",
+    "node_trees.shading",
+    "scene.maps",
+    "sequence",
+    "live",
+    "previews",
+    "ops",
+)
 
 
 def _modules():

@@ -38,9 +38,9 @@ import json
 import bpy
 
 from ..virtual_reflections.frames import sequence_range
-from . import bounds, camera_match, plate
-from .images import CREATED
-from .nodes import USE_NODES_DEPRECATED, new_node
+from .node_trees.nodes import USE_NODES_DEPRECATED, new_node
+from .scene import bounds, camera_match, plate
+from .scene.images import CREATED
 
 RECORD = "vr_plate_setup"  # scene custom property: what setup_from_plate changed (JSON)
 GROUP_NAME = "VR Composite"  # the compositor node group setup makes (5.x)
@@ -84,7 +84,7 @@ def setup_from_plate(scene, image, ground=False, lens=False, view=True) -> dict:
     With ``ground``, a shadow-catcher plane is put under the scene's
     visible meshes (`add_ground`) unless the scene has a ground already. With ``lens``, the
     camera's focal length is set from the photo's 35 mm-equivalent focal length when its
-    metadata has one (camera_match.py). ``record["advice"]`` says how to match the camera
+    metadata has one (scene/camera_match.py). ``record["advice"]`` says how to match the camera
     to the photo, and warns when the camera was framed for another aspect.
     """
     width, height = plate.size(image)

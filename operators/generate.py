@@ -14,8 +14,10 @@ from dataclasses import dataclass
 import bpy
 
 from ..virtual_reflections.composite import union_box
-from . import maps, pipeline, plate, shading, world, world_probe
-from .choices import map_width
+from . import pipeline
+from .node_trees import shading, world, world_probe
+from .scene import maps, plate
+from .scene.choices import map_width
 
 RENDER_START_GRACE = 5.0  # s: an invoked render job not seen running by then counts as over
 

@@ -58,8 +58,10 @@ from ..virtual_reflections import methods
 from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
 from ..virtual_reflections.layouts import latlong_directions
 from ..virtual_reflections.plainexr import read_channels
-from . import bounds, generate, images, maps, shading, traced_pass
-from .plate import NO_PLATE, scene_plate
+from . import generate, traced_pass
+from .node_trees import shading
+from .scene import bounds, images, maps
+from .scene.plate import NO_PLATE, scene_plate
 
 R_MAX = 8  # the most passes "auto" renders unless told otherwise
 TOLERANCE = 1.0 / 255.0  # "auto" stops when a pass changes the objects' pixels less than this

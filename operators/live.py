@@ -33,8 +33,10 @@ import bpy
 from ..virtual_reflections import methods
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
-from . import app_handlers, maps, pipeline, plate, previews, shading, world_probe
-from .choices import map_width
+from . import pipeline, previews
+from .node_trees import shading, world_probe
+from .scene import app_handlers, maps, plate
+from .scene.choices import map_width
 
 MOVING_WIDTH = 256  # map width while the object moves
 PLATE_MARGIN = 1.5  # the reduced plate stays at least this many times the moving map's width

@@ -7,16 +7,9 @@ Inter-Reflections (interreflect.py), Open in Image Editor (previews.py).
 
 import bpy
 
-from . import (
-    compositor,
-    generate,
-    interreflect,
-    maps,
-    plate,
-    previews,
-    reflection_snapshot,
-    shading,
-)
+from . import compositor, generate, interreflect, previews, reflection_snapshot
+from .node_trees import shading
+from .scene import maps, plate
 
 COMPOSITE_IMAGE = "VR Inter-Reflections"  # the last inter-reflection render over the plate
 COMPOSITE_KIND = "composite"

@@ -26,9 +26,10 @@ from ..virtual_reflections.ggx_lobe import dominant_shift
 from ..virtual_reflections.params import sky_gain_for
 from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
-from . import bounds, plate, shading, world_probe
-from .floor import ground_height, objects_box, objects_centre
-from .ground_nodes import GroundLookup
+from .node_trees import shading, world_probe
+from .node_trees.ground_nodes import GroundLookup
+from .scene import bounds, plate
+from .scene.floor import ground_height, objects_box, objects_centre
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect
 SHADED_GROUND = methods.PER_OBJECT_LOOKS  # looks whose material reads the ground itself

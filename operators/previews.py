@@ -20,7 +20,9 @@ import numpy as np
 from ..virtual_reflections import methods, segment
 from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.overlay import draw_segmentation
-from . import colour_space, images, maps, pipeline, plate, shading
+from . import pipeline
+from .node_trees import shading
+from .scene import colour_space, images, maps, plate
 
 PREVIEW_WIDTH = 256  # pixels across a preview image (maps: 256 x 128)
 OVERLAY = "overlay"  # the CREATED value of the full-size segmentation picture

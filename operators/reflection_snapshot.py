@@ -17,7 +17,9 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import generate, images, maps, shading
+from . import generate
+from .node_trees import shading
+from .scene import images, maps
 
 
 @dataclass

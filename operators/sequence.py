@@ -3,7 +3,7 @@
 Update Every Frame (``scene.virtual_reflections.sequence``): on every frame change -- viewport
 playback, scrubbing, ``frame_set``, and each frame of a render -- the maps of the scene's
 objects that have a reflection attached are rebuilt from the plate's current frame and the
-objects' bounds at that frame. The batch's frame ranges (batch_frames.py) call the same
+objects' bounds at that frame. The batch's frame ranges (batch/ranges.py) call the same
 `update` per frame.
 
 Frames and threads, verified in Blender 4.5 and 5.2 (tests/blender/test_sequence.py; an
@@ -45,7 +45,9 @@ import numpy as np
 
 from ..virtual_reflections import methods
 from ..virtual_reflections.composite import union_box
-from . import floor, maps, pipeline, plate, shading
+from . import pipeline
+from .node_trees import shading
+from .scene import floor, maps, plate
 
 # --- bounds over time --------------------------------------------------------------------------
 

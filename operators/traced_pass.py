@@ -45,9 +45,10 @@ from mathutils import Vector
 
 from ..virtual_reflections import methods
 from ..virtual_reflections.methods import WHOLE_SURFACE_LOOKS
-from . import floor, ground_nodes, reflection_nodes, shading
-from .images import CREATED
-from .nodes import math_node, new_node, vector_math_node, view_ray
+from .node_trees import ground_nodes, reflection_nodes, shading
+from .node_trees.nodes import math_node, new_node, vector_math_node, view_ray
+from .scene import floor
+from .scene.images import CREATED
 
 DOME = "VR Traced Dome"
 GROUND_PLANE = "VR Traced Ground"

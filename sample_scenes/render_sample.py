@@ -6,7 +6,7 @@
 (or ``tools/render-sample ...``, which makes the environment first). Default: the chrome
 sphere on the courtyard plate. For each scene it builds the scene over the plate
 (build_scenes.py), renders it twice through the batch entry (render_shot.py's
-``operators.batch.render_shot``) -- first with the objects' own materials, then after
+``operators.batch.shot.render_shot``) -- first with the objects' own materials, then after
 generating their virtual reflections -- each composited over the plate, and writes
 
     OUT/<scene>_without.png   OUT/<scene>_with.png   OUT/<scene>_side_by_side.png
@@ -107,7 +107,7 @@ def renderer_quiet(enabled=True):
 
 
 def batch_options(options_type, kind, built, work_dir, reflections, *, scale=50, samples=16):
-    """The batch's options (``options_type``: the add-on's operators.batch_options.BatchOptions)
+    """The batch's options (``options_type``: the add-on's operators.batch.options.BatchOptions)
     for rendering scene ``kind`` as ``built`` without or with virtual reflections into
     ``work_dir``; the output stem is ``<kind>_without`` or ``<kind>_with``."""
     return options_type(
@@ -142,8 +142,8 @@ def render_pair(
     from importlib import import_module
 
     build_scenes = load_build_scenes()
-    batch = import_module(addon.__name__ + ".operators.batch")
-    BatchOptions = import_module(addon.__name__ + ".operators.batch_options").BatchOptions
+    batch = import_module(addon.__name__ + ".operators.batch.shot")
+    BatchOptions = import_module(addon.__name__ + ".operators.batch.options").BatchOptions
     imagefiles = import_module(addon.__name__ + ".virtual_reflections.imagefiles")
     clock = clock or Clock()
 

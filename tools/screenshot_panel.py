@@ -216,7 +216,7 @@ def shoot_editor():
 @step
 def drag():
     """Live update with Blender's own timers: move the sphere as a drag would."""
-    maps = sys.modules[ADDON.__name__ + ".operators.maps"]
+    maps = sys.modules[ADDON.__name__ + ".operators.scene.maps"]
     image = bpy.data.images[maps.map_name(STATE["sphere"].name)]
     STATE["version"] = maps.version(image)
     STATE["sphere"].location.x += 0.3
@@ -238,7 +238,7 @@ def _settled(live, key):
 
 @step
 def rested():
-    maps = sys.modules[ADDON.__name__ + ".operators.maps"]
+    maps = sys.modules[ADDON.__name__ + ".operators.scene.maps"]
     live = sys.modules[ADDON.__name__ + ".operators.live"]
     if not _settled(live, "rested"):
         return 0.5
@@ -255,7 +255,7 @@ def rested():
 
 @step
 def reshaped():
-    maps = sys.modules[ADDON.__name__ + ".operators.maps"]
+    maps = sys.modules[ADDON.__name__ + ".operators.scene.maps"]
     if not _settled(sys.modules[ADDON.__name__ + ".operators.live"], "reshaped"):
         return 0.5
     image = bpy.data.images[maps.map_name(STATE["sphere"].name)]

@@ -9,19 +9,9 @@ import textwrap
 
 import bpy
 
-from ..operators import (
-    compositor,
-    floor,
-    generate,
-    live,
-    maps,
-    pipeline,
-    plate,
-    previews,
-    sequence,
-    shading,
-    world_probe,
-)
+from ..operators import compositor, generate, live, pipeline, previews, sequence
+from ..operators.node_trees import shading, world_probe
+from ..operators.scene import floor, maps, plate
 from ..virtual_reflections import methods
 from . import presets
 

@@ -7,7 +7,8 @@ look changes at once. The panel shows the preset whose values are current as pre
 
 import bpy
 
-from ..operators import generate, shading
+from ..operators import generate
+from ..operators.node_trees import shading
 
 # name -> (label, icon, description, {setting: value})
 PRESETS = {

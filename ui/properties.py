@@ -16,7 +16,7 @@ from bpy.props import (
 )
 
 from ..operators import live, sequence
-from ..operators.choices import (
+from ..operators.scene.choices import (
     COMBINE_ITEMS,
     FRONT_ITEMS,
     MAP_STORAGE_ITEMS,
@@ -104,8 +104,8 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         step=10,
         precision=2,
         description="Surroundings Custom: the unseen sky above and behind the camera is taken "
-        "as a neutral grey this many times the ground's brightness in the photo (Auto "
-        f"{SKY_GAINS['auto']:g}, Open Sky {SKY_GAINS['open']:g}, Enclosed "
+        "as a neutral grey this many times the ground's brightness in the photo (an average "
+        f"place near {SKY_GAINS['auto']:g}, Open Sky {SKY_GAINS['open']:g}, Enclosed "
         f"{SKY_GAINS['enclosed']:g}); raise it until the chrome's top matches the sky you know",
     )
     sky_tint: FloatVectorProperty(

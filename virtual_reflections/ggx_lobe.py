@@ -14,7 +14,7 @@ roughness 0.35 (docs/ground.md, "Rough surfaces under a bright light").
 masking and the microfacets facing the viewer), so its centre is not the mirror direction but
 part of the way from it to the normal, more with roughness and toward grazing views (the
 "dominant direction" of real-time pre-filtered lookups, derived here from the model); the Mix
-look reads its pre-filtered map there (operators/reflection_nodes.py).
+look reads its pre-filtered map there (operators/node_trees/reflection_nodes.py).
 """
 
 from __future__ import annotations

@@ -29,9 +29,9 @@ else `height`: resting on the ground) at the map's origin, a ground point at dis
 t = height / sin(b) along d (b its angle below the horizon) sees it under the form factor
 (r / t)^2 cos = (r / height)^2 sin(b)^3; the ground's taps are weighted by the sky left,
 1 - that (`sky_left`), under an even sky (the per-shading-point lookup does the same with the
-object's box, operators/ground_nodes.py). The artist can weaken it (`Params.ground`'s sixth
-value, the panel's Contact Shadow: the hidden share times it), for a plate that already shows
-the object's shadow.
+object's box, operators/node_trees/ground_nodes.py). The artist can weaken it
+(`Params.ground`'s sixth value, the panel's Contact Shadow: the hidden share times it), for
+a plate that already shows the object's shadow.
 
 What it does not model: the object's shadow from a directional light (a sun), things standing
 on the ground (they are read where the camera sees them, as part of the ground), and the

@@ -1,4 +1,4 @@
-"""The headless batch's options (render_shot.py, operators/batch.py), typed and checked once.
+"""The headless batch's options (render_shot.py, operators/batch/shot.py), typed and checked once.
 
 `BatchOptions` holds every option the batch reads, each field with its command-line option
 (help, default, choices, a type that converts the text): `add_arguments` builds render_shot's
@@ -18,12 +18,12 @@ import os
 import unicodedata
 from dataclasses import MISSING, dataclass, field, fields
 
-from ..virtual_reflections import methods
-from ..virtual_reflections.cli_common import words
-from ..virtual_reflections.frames import parse_frames
-from ..virtual_reflections.mapsize import WIDTHS
-from ..virtual_reflections.methods import MAX_TRIANGLES
-from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
+from ...virtual_reflections import methods
+from ...virtual_reflections.cli_common import words
+from ...virtual_reflections.frames import parse_frames
+from ...virtual_reflections.mapsize import WIDTHS
+from ...virtual_reflections.methods import MAX_TRIANGLES
+from ...virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
 # The choice lists of the engine's definitions (virtual_reflections/methods.py)
 COMBINES = methods.COMBINE_NAMES

@@ -2,11 +2,11 @@
 
 Per frame: the plate of that frame, the maps rebuilt with smoothed bounds (sequence.update, as
 Update Every Frame does), a render, the CG element <name>_render.<frame:04d>.exr and the
-composite <name>.<frame:04d>.<ext>, and the JSON report rewritten (batch_report.py). Every
+composite <name>.<frame:04d>.<ext>, and the JSON report rewritten (report.py). Every
 file appears at once (written under a temporary name in the output folder, then renamed),
-frames already complete and made from the same inputs are skipped (resume, batch_record.py),
+frames already complete and made from the same inputs are skipped (resume, record.py),
 bad input is refused before anything is written, and a run locks the frames it writes
-(batch_lock.py). A plate frame that cannot be read whole fails its frame (exit 1, named in
+(lock.py). A plate frame that cannot be read whole fails its frame (exit 1, named in
 the report) instead of rendering half grey.
 """
 
@@ -18,21 +18,23 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ..virtual_reflections import backends
-from ..virtual_reflections.atomic_files import (
+from ...virtual_reflections import backends
+from ...virtual_reflections.atomic_files import (
     ImageError,
     held_stderr,
     remove_stale_temps,
     temp_path,
 )
-from ..virtual_reflections.composite import over, resize_nearest
-from ..virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
-from ..virtual_reflections.imagefiles import check_complete, write_rgba
-from ..virtual_reflections.movies import frames_text, whole_frames
-from . import batch_record, compositor, generate, interreflect, plate, sequence
-from .batch_lock import OutputLock
-from .batch_options import BatchOptions
-from .batch_render import (
+from ...virtual_reflections.composite import over, resize_nearest
+from ...virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
+from ...virtual_reflections.imagefiles import check_complete, write_rgba
+from ...virtual_reflections.movies import frames_text, whole_frames
+from .. import compositor, generate, interreflect, sequence
+from ..scene import plate
+from . import record
+from .lock import OutputLock
+from .options import BatchOptions
+from .render import (
     BatchError,
     artist_compositor,
     check_folder,
@@ -46,7 +48,7 @@ from .batch_render import (
     shot_objects,
     write_image,
 )
-from .batch_report import (
+from .report import (
     check_report_path,
     one_line,
     pass_report,
@@ -55,7 +57,7 @@ from .batch_report import (
     run_report,
     write_json,
 )
-from .batch_signals import raise_if_signalled
+from .signals import raise_if_signalled
 
 FORMATS = {"exr": "OPEN_EXR", "png": "PNG"}  # BatchOptions.format -> Blender's file format
 
@@ -242,7 +244,7 @@ def _view(scene):
 
 
 def _run_inputs(scene, options, objects, size, use_passes):
-    """What makes every frame of this run, besides its plate (batch_record): the shot, the
+    """What makes every frame of this run, besides its plate (record.py): the shot, the
     effective settings (after the command line's), passes, render and output."""
     settings = scene.virtual_reflections
     ground = getattr(settings, "ground_object", None)
@@ -277,7 +279,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
     return {
         "extension_version": _extension_version(),
         "blender": _blender(),
-        "shot": batch_record.file_identity(bpy.data.filepath) if bpy.data.filepath else None,
+        "shot": record.file_identity(bpy.data.filepath) if bpy.data.filepath else None,
         "scene": scene.name,
         "reflections": reflections if not options.no_reflections else None,
         "passes": {
@@ -295,7 +297,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
 
 def _frame_inputs(run_inputs, source, frame):
     """``run_inputs`` and the plate of ``frame`` (its file's size and time; a movie's frame)."""
-    plate_file = batch_record.file_identity(source.file(frame))
+    plate_file = record.file_identity(source.file(frame))
     if source.kind == "movie":
         plate_file["frame"] = frame
     return {**run_inputs, "plate": plate_file}
@@ -306,12 +308,12 @@ def _resume(paths, size, inputs, overwrite):
     says ``inputs`` made them; ``why`` says why a complete frame is rendered again."""
     if overwrite or not all(_complete(p, size) for p in paths):
         return False, None
-    why = batch_record.stale(paths[0], inputs)
+    why = record.stale(paths[0], inputs)
     return why is None, why
 
 
 def _run_header(scene, options, source, name, out, size, own, use_passes):
-    """What the report says of the whole run (batch_report.run_report puts the frames after
+    """What the report says of the whole run (report.run_report puts the frames after
     it): the shot, plate, outputs and their colour, the render and the reflections."""
     settings = scene.virtual_reflections
     fmt = options.format
@@ -375,7 +377,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
     # This run owns its frames' outputs (the lock): any temporary file of theirs is a dead
     # run's. The report may be shared with a live run on other frames: only dead runs' go.
     owned = [*outputs.values(), *(element_path(out, name, f) for f in outputs)]
-    records = [os.path.basename(batch_record.record_path(p))[1:] for p in outputs.values()]
+    records = [os.path.basename(record.record_path(p))[1:] for p in outputs.values()]
     remove_stale_temps(out, _stems(owned) + records, live_ok=True)
     remove_stale_temps(os.path.dirname(report_path), _stems([report_path]))
     header = _run_header(scene, options, source, name, out, size, own, use_passes)
@@ -412,7 +414,7 @@ def _render_frames(options, started, source, frames, outputs, report_path):
                 entry = dict(previous.get(frame, {"frame": frame, "outputs": [path, element]}))
                 entry["status"] = "skipped"
                 entry.pop("rendered_again", None)
-                entry["fingerprint"] = batch_record.digest(inputs)
+                entry["fingerprint"] = record.digest(inputs)
                 if objects and not use_passes:
                     job.step_through(frame)
                 entries[frame] = entry
@@ -423,9 +425,9 @@ def _render_frames(options, started, source, frames, outputs, report_path):
             if why:
                 print(f"frame {i}/{len(frames)} [{frame}] rendered again: {why}", flush=True)
             try:
-                batch_record.forget(path)  # the old record must not vouch for new files
+                record.forget(path)  # the old record must not vouch for new files
                 entry = job.render(frame, path, element)
-                entry["fingerprint"] = batch_record.write(path, inputs)
+                entry["fingerprint"] = record.write(path, inputs)
                 if why:
                     entry["rendered_again"] = why
             except (ValueError, OSError, RuntimeError) as exc:  # after frames were written

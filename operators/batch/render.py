@@ -1,4 +1,4 @@
-"""The batch's steps on one scene (batch.py's one frame and batch_frames.py's ranges share them):
+"""The batch's steps on one scene (shot.py's one frame and ranges.py's share them):
 the command line's settings on the scene, the objects that reflect, the plate file's checks,
 the output folder, a render read back as arrays, and an image written whole through Blender.
 
@@ -15,8 +15,14 @@ import time
 import bpy
 import numpy as np
 
-from ..virtual_reflections.atomic_files import ImageError, commit, held_stderr, same_file, temp_path
-from ..virtual_reflections.imagefiles import (
+from ...virtual_reflections.atomic_files import (
+    ImageError,
+    commit,
+    held_stderr,
+    same_file,
+    temp_path,
+)
+from ...virtual_reflections.imagefiles import (
     HALF_MAX,
     check_complete,
     plain_rgb_command,
@@ -24,10 +30,12 @@ from ..virtual_reflections.imagefiles import (
     read_header,
     read_rgba,
 )
-from ..virtual_reflections.memory import check_fits, plate_job_bytes, render_job_bytes
-from . import compositor, floor, maps, plate, sequence, shading, world_probe
-from .batch_options import BatchOptions
-from .batch_signals import raise_if_signalled
+from ...virtual_reflections.memory import check_fits, plate_job_bytes, render_job_bytes
+from .. import compositor, sequence
+from ..node_trees import shading, world_probe
+from ..scene import floor, maps, plate
+from .options import BatchOptions
+from .signals import raise_if_signalled
 
 
 class BatchError(RuntimeError):

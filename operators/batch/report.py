@@ -10,11 +10,11 @@ import os
 import re
 import time
 
-from ..virtual_reflections.atomic_files import WriteError, same_file, temp_path
-from ..virtual_reflections.frames import pattern_frame
+from ...virtual_reflections.atomic_files import WriteError, same_file, temp_path
+from ...virtual_reflections.frames import pattern_frame
 
 REPORT_KEYS = ("frames", "totals", "complete")  # every report has them (run_report)
-MAPS_FOLDER = "vr_maps"  # OUT/vr_maps/<name>/: the run's saved maps (batch_render.configure)
+MAPS_FOLDER = "vr_maps"  # OUT/vr_maps/<name>/: the run's saved maps (render.configure)
 
 
 def write_json(path, data):

@@ -2,13 +2,13 @@
 
 One frame (`render_shot` without --frames and with a still plate) writes <name>_render.exr and
 <name>_composite.png/.exr; a frame range (--frames, or a plate that is an image sequence or a
-movie) goes to batch_frames.render_frames. The steps both share are in batch_render.py, Ctrl-C
-and SIGTERM in batch_signals.py.
+movie) goes to ranges.render_frames. The steps both share are in render.py, Ctrl-C
+and SIGTERM in signals.py.
 
 Nothing a user had is lost (issue 14, docs/failures.md): every output, one frame or a range,
 is written under this process's temporary name, read back whole (`atomic_files.commit`) and
 only then renamed over the previous file; an output that would replace a plate is refused;
-a run locks the outputs it writes (batch_lock.py), so a second run on the same frames is
+a run locks the outputs it writes (lock.py), so a second run on the same frames is
 refused instead of deleting the first's temporary files.
 
 Rendering uses Blender's own renderer; the final composite (render over plate) is computed in
@@ -21,20 +21,21 @@ import time
 
 import bpy
 
-from ..virtual_reflections.atomic_files import (
+from ...virtual_reflections.atomic_files import (
     ImageError,
     held_stderr,
     remove_stale_temps,
     temp_path,
 )
-from ..virtual_reflections.composite import over, resize_nearest
-from ..virtual_reflections.frames import parse_frames
-from ..virtual_reflections.imagefiles import write_rgba
-from . import compositor, generate, interreflect, plate
-from .batch_frames import PlateSource, render_frames
-from .batch_lock import OutputLock
-from .batch_options import BatchOptions, check_name
-from .batch_render import (
+from ...virtual_reflections.composite import over, resize_nearest
+from ...virtual_reflections.frames import parse_frames
+from ...virtual_reflections.imagefiles import write_rgba
+from .. import compositor, generate, interreflect
+from ..scene import plate
+from .lock import OutputLock
+from .options import BatchOptions, check_name
+from .ranges import PlateSource, render_frames
+from .render import (
     BatchError,
     artist_compositor,
     check_folder,
@@ -48,8 +49,8 @@ from .batch_render import (
     shot_objects,
     write_image,
 )
-from .batch_report import check_report_path, report_file, run_report, write_json
-from .batch_signals import raise_if_signalled
+from .report import check_report_path, report_file, run_report, write_json
+from .signals import raise_if_signalled
 
 
 def render_shot(options: BatchOptions, started):

@@ -11,7 +11,7 @@ import gc
 import signal
 import sys
 
-from ..virtual_reflections.interrupts import hold_interrupts, raising
+from ...virtual_reflections.interrupts import hold_interrupts, raising
 
 
 class Interrupted(KeyboardInterrupt):

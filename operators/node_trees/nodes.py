@@ -7,7 +7,7 @@ with the same name is left alone; a group made by an older version of the add-on
 
 import bpy
 
-from .images import CREATED
+from ..scene.images import CREATED
 
 USE_NODES_DEPRECATED = bpy.app.version >= (5, 0, 0)  # 5.x: node trees always on
 GROUP_VERSION = 1  # bump when the lookup groups' contents change; old ones are rebuilt

@@ -12,8 +12,8 @@ import math
 
 import bpy
 
+from ..scene.images import CREATED
 from .ground_nodes import mix_ground
-from .images import CREATED
 from .nodes import find_or_new_group, math_node, new_node, vector_math_node, view_ray
 
 LOOKUP_GROUP = "VR Camera LatLong"

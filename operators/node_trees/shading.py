@@ -41,10 +41,10 @@ file opens.
 
 import bpy
 
-from ..virtual_reflections.methods import COMBINE_NAMES, WHOLE_SURFACE_LOOKS
-from . import app_handlers
+from ...virtual_reflections.methods import COMBINE_NAMES, WHOLE_SURFACE_LOOKS
+from ..scene import app_handlers
+from ..scene.images import CREATED, check_local
 from .ground_nodes import occluder
-from .images import CREATED, check_local
 from .nodes import USE_NODES_DEPRECATED, new_node
 from .reflection_nodes import BOX_INPUTS, ensure_reflection_group, remove_unused_groups
 from .world import ENVIRONMENT_NODE, WORLD_RECORD, attach_world, detach_world

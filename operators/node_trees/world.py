@@ -9,7 +9,7 @@ probes' own views as "camera", which scrambles what materials reflect; drivers o
 
 import bpy
 
-from .images import CREATED, check_local
+from ..scene.images import CREATED, check_local
 from .nodes import USE_NODES_DEPRECATED, math_node, new_node, view_ray
 from .reflection_nodes import ensure_latlong_group, remove_unused_groups
 

@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 
-from ..virtual_reflections.mapsize import WIDTHS
-from ..virtual_reflections.probe import Probe, exposure_ratio, shrink_to
-from . import images
+from ...virtual_reflections.mapsize import WIDTHS
+from ...virtual_reflections.probe import Probe, exposure_ratio, shrink_to
+from ..scene import images
 from .world import WORLD_RECORD
 
 CAMERA_TO_LOCAL = np.diag([-1.0, 1.0, -1.0])  # the engine's camera frame -> Blender camera-local

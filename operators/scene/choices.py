@@ -9,10 +9,11 @@ from types import SimpleNamespace
 
 import bpy
 
-from ..virtual_reflections.mapsize import WIDTHS, auto_map_width
-from ..virtual_reflections.methods import COMBINES, METHODS, SURROUNDINGS
+from ...virtual_reflections.mapsize import WIDTHS, auto_map_width
+from ...virtual_reflections.methods import COMBINES, METHODS, SURROUNDINGS
 
-ADDON = __package__.rpartition(".")[0]  # the extension's package (preferences' bl_idname)
+# The extension's package (preferences' bl_idname): two up from operators/scene/.
+ADDON = __package__.rsplit(".", 2)[0]
 
 
 def _items(choices) -> tuple:

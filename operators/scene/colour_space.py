@@ -28,7 +28,7 @@ import bpy
 import mathutils
 import numpy as np
 
-from ..virtual_reflections.colour import DISPLAY_P3_TO_XYZ_D65, linear_to_srgb, srgb_to_linear
+from ...virtual_reflections.colour import DISPLAY_P3_TO_XYZ_D65, linear_to_srgb, srgb_to_linear
 
 REC709 = "Linear Rec.709"
 

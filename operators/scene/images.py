@@ -12,8 +12,8 @@ property ``CREATED`` naming what it is, so the add-on deletes only what it made.
 import bpy
 import numpy as np
 
-from ..virtual_reflections.colour import decode_uint
-from ..virtual_reflections.parallel import for_blocks
+from ...virtual_reflections.colour import decode_uint
+from ...virtual_reflections.parallel import for_blocks
 from . import colour_space
 
 CREATED = "vr_created"  # custom property on every datablock the add-on made; value: its kind

@@ -22,10 +22,10 @@ import uuid
 import bpy
 import numpy as np
 
-from ..virtual_reflections.atomic_files import ImageError
-from ..virtual_reflections.imagefiles import write_map
+from ...virtual_reflections.atomic_files import ImageError
+from ...virtual_reflections.imagefiles import write_map
 from . import app_handlers, images, undo_pixels
-from .choices import addon_preferences
+from .choices import ADDON, addon_preferences
 
 KIND = "map"  # images.CREATED value of maps
 NEEDS_PACK = "vr_needs_pack"  # on maps: pack again at the next save
@@ -74,7 +74,7 @@ def maps_folder(scene=None, create=True) -> str:
     if addon_preferences().map_folder == "USER":
         try:
             return bpy.utils.extension_path_user(
-                images.__package__.rpartition(".")[0],
+                ADDON,
                 path=os.path.join("maps", _user_key(scene or bpy.context.scene, create)),
                 create=create,
             )

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..virtual_reflections.colour import clean_plate
-from ..virtual_reflections.frames import sequence_path, user_frame
+from ...virtual_reflections.colour import clean_plate
+from ...virtual_reflections.frames import sequence_path, user_frame
 from . import images
 
 FRAME_IMAGE = ".VR Plate Frame"  # private images reading plate frames (dot: hidden in lists)

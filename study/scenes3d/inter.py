@@ -65,7 +65,7 @@ class InterAddon(Addon):
         self.interreflect = importlib.import_module(
             f"{self.module.__name__}.operators.interreflect"
         )
-        self.plate = importlib.import_module(f"{self.module.__name__}.operators.plate")
+        self.plate = importlib.import_module(f"{self.module.__name__}.operators.scene.plate")
         self.traced_pass = importlib.import_module(f"{self.module.__name__}.operators.traced_pass")
 
 

@@ -3,7 +3,7 @@
 Per scene: the plate (the scene without the subject: float EXR and 8-bit sRGB PNG), the truth
 (the subject in the full scene as a mirror and as a rough glossy at two roughnesses), and each
 method's render of the subject alone (ground and neighbours hidden from render) over the plate:
-the add-on's methods (read from operators/choices.py METHOD_ITEMS at run time; Generate on the
+the add-on's methods (read from operators/scene/choices.py METHOD_ITEMS at run time; Generate on the
 8-bit plate, Auto resolution, combine Replace for the mirror and World for the rough subjects)
 and three worlds around the subject's own material (the true HDRI at infinity: an on-set
 probe; the plate stretched over the sphere; the plate's mean colour). Metrics on the subject's
@@ -65,7 +65,7 @@ class Addon:
     def __init__(self):
         self.module, self.registered = build.build_scenes().addon()
         self.generate = importlib.import_module(f"{self.module.__name__}.operators.generate")
-        choices = importlib.import_module(f"{self.module.__name__}.operators.choices")
+        choices = importlib.import_module(f"{self.module.__name__}.operators.scene.choices")
         self.methods = [(item[0], item[1]) for item in choices.METHOD_ITEMS]
 
     def close(self):

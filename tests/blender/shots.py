@@ -62,7 +62,7 @@ def ramp_plate(width=96, height=64, name="Plate"):
 
 def project_points(bounds, points_world, scene, camera_obj=None):
     """(N, 3) world points -> ((N, 2) float64 plate pixels (px, py), (N,) bool in front), through
-    ``bounds`` (operators/bounds.py) and the scene camera (or ``camera_obj``). In front means
+    ``bounds`` (operators/scene/bounds.py) and the scene camera (or ``camera_obj``). In front means
     beyond the near plane (depth >= clip_start); rows not in front are NaN."""
     projection = bounds.camera_projection(scene, camera_obj)
     cam = projection.to_camera(np.asarray(points_world, dtype=np.float64).reshape(-1, 3).T)
@@ -158,7 +158,7 @@ def render_transparent(scene, path, samples=16):
 def camera_rays(scene, width, height):
     """World-space rays through the pixel centres of a ``width`` x ``height`` render of the
     scene's camera: ((3,) origin, (height, width, 3) directions), top row first."""
-    bounds = addon_part("operators.bounds")
+    bounds = addon_part("operators.scene.bounds")
     projection = bounds.camera_projection(scene)
     left, right, bottom, top = projection.frame
     py, px = np.mgrid[0:height, 0:width] + 0.5

@@ -278,7 +278,7 @@ def test_an_interrupt_in_a_callback_from_c_is_held_for_the_next_step():
     """A signal whose Interrupted is raised inside a callback from C (Python cannot pass it
     on there and would print it: the compiled back end's kernel cache calls back through
     ctypes) prints nothing; the next step raises it, and other unraisable errors still print."""
-    signals = addon_part("operators.batch_signals")
+    signals = addon_part("operators.batch.signals")
     seen = []
     previous = sys.unraisablehook
     sys.unraisablehook = seen.append
@@ -413,7 +413,7 @@ def test_an_existing_still_with_pattern_characters_is_a_still(shot, tmp_path, na
     blend, plates = shot
     still = tmp_path / name
     still.write_bytes(plates[0].read_bytes())
-    source = addon_part("operators.batch_frames").PlateSource(str(still))
+    source = addon_part("operators.batch.ranges").PlateSource(str(still))
     assert source.kind == "still" and source.file(7) == str(still)
     if name.startswith("take"):
         out = tmp_path / "out"

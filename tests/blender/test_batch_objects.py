@@ -24,7 +24,7 @@ def plane(name, z=-0.6, size=20.0, catcher=False):
 
 @pytest.fixture
 def shot_objects(addon):
-    return addon_part("operators.batch_render").shot_objects
+    return addon_part("operators.batch.render").shot_objects
 
 
 def names(objects):

@@ -1,4 +1,4 @@
-"""The headless batch's options (operators/batch_options.py): render_shot's defaults, one-line
+"""The headless batch's options (operators/batch/options.py): render_shot's defaults, one-line
 checks, immutability, and render_sample building them. render_shot.parse needs no bpy."""
 
 import dataclasses
@@ -28,7 +28,7 @@ def _load(name, path):
 
 @pytest.fixture(scope="module")
 def batch_options():
-    return addon_part("operators.batch_options")
+    return addon_part("operators.batch.options")
 
 
 @pytest.fixture(scope="module")

@@ -151,7 +151,7 @@ def test_frames_made_with_another_blender_render_again(shot, tmp_path):
     record = json.loads(path.read_text())
     assert record["inputs"]["blender"]["version"] == bpy.app.version_string
     # As if Blender 4.2 had made frame 1: its record stays whole (fingerprint of its inputs).
-    batch_record = addon_part("operators.batch_record")
+    batch_record = addon_part("operators.batch.record")
     record["inputs"]["blender"] = {"version": "4.2.0", "build_hash": "0123456789ab"}
     record["fingerprint"] = batch_record.digest(record["inputs"])
     path.write_text(json.dumps(record))

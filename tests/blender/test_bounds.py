@@ -1,4 +1,5 @@
-"""operators/bounds.py: screen bounds in plate pixels (origin top-left, y down, x1/y1 exclusive).
+"""operators/scene/bounds.py: screen bounds in plate pixels (origin top-left, y down,
+x1/y1 exclusive).
 
 The expected values come from `reference_pixels`, pinhole/orthographic maths written out here
 independently of the implementation, from Blender's frame (`Camera.view_frame`) and from Cycles.
@@ -16,8 +17,8 @@ bpy = pytest.importorskip("bpy")
 
 @pytest.fixture
 def bounds(addon):
-    """operators/bounds.py, imported from the extension package on a fresh empty file."""
-    return importlib.import_module(addon.__name__ + ".operators.bounds")
+    """operators/scene/bounds.py, imported from the extension package on a fresh empty file."""
+    return importlib.import_module(addon.__name__ + ".operators.scene.bounds")
 
 
 # A unit cube: 8 corners, 6 quads.

@@ -1,4 +1,4 @@
-"""Set Up From Plate's advice on matching the camera to the photo (operators/camera_match.py):
+"""Set Up From Plate's advice on matching the camera to the photo (operators/scene/camera_match.py):
 the focal length from the plate's EXIF (35 mm equivalent), recorded and undone; what it says
 without metadata (fSpy's importer); a warning when the camera was framed for another aspect."""
 

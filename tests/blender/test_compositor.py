@@ -28,8 +28,8 @@ def comp(addon):
 
 @pytest.fixture
 def plates(addon):
-    """operators/plate.py: the scene's plate and its pixels."""
-    return importlib.import_module(addon.__name__ + ".operators.plate")
+    """operators/scene/plate.py: the scene's plate and its pixels."""
+    return importlib.import_module(addon.__name__ + ".operators.scene.plate")
 
 
 @pytest.fixture

@@ -58,13 +58,13 @@ def map_colour(image, direction):
     lon, lat = math.atan2(d[0], d[2]), math.asin(d[1])
     col = int((-lon / (2 * math.pi) + 0.5) * w) % w
     row = min(max(int((-lat / math.pi + 0.5) * h), 0), h - 1)
-    pixels = addon_part("operators.images").read_pixels(image)
+    pixels = addon_part("operators.scene.images").read_pixels(image)
     return pixels[row, col, :3]
 
 
 def toward(scene, ball, world_point):
     """The camera-frame direction from the ball's centre toward a world point."""
-    bounds = addon_part("operators.bounds")
+    bounds = addon_part("operators.scene.bounds")
     projection = bounds.camera_projection(scene)
     a = np.array(bounds.to_engine_frame(projection, point=world_point))
     b = np.array(bounds.to_engine_frame(projection, point=tuple(ball.location)))
@@ -76,7 +76,7 @@ def generate(scene, ball):
         scene, bpy.context.evaluated_depsgraph_get(), [ball]
     )
     assert report.done == ["Ball"], report.warnings
-    return addon_part("operators.shading").map_of(ball)
+    return addon_part("operators.node_trees.shading").map_of(ball)
 
 
 POINTS = [((1.2, 1.5, 0.0), RED), ((-1.2, 1.5, 0.0), BLUE), ((1.0, -1.0, 0.0), RED),
@@ -136,7 +136,7 @@ def test_the_floor_under_is_the_highest_mesh_below_the_objects_when_flat(addon):
     ground plane. A column under the ball, up to its lowest point, is what it stands on (not
     flat): None, and the ball's lowest point is the ground, as with no floor at all. The
     panel's line (`ground_source`) names the floor."""
-    floor = addon_part("operators.floor")
+    floor = addon_part("operators.scene.floor")
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 1.0))
     ball = bpy.context.active_object
@@ -220,7 +220,7 @@ def test_the_map_changes_smoothly_with_motion(addon):
         ball.location.y = y
         bpy.context.view_layer.update()
         image = generate(scene, ball)
-        pixels = addon_part("operators.images").read_pixels(image)[..., :3].copy()
+        pixels = addon_part("operators.scene.images").read_pixels(image)[..., :3].copy()
         if previous is not None:
             changes.append(float(np.abs(pixels - previous).mean()))
         previous = pixels
@@ -236,7 +236,7 @@ def test_a_ground_above_the_camera_falls_back_to_camera_view(addon):
     scene, ball = make_shot()
     ball.location.z = 2.5  # lowest point 2.0 m, the camera at 1.6 m
     bpy.context.view_layer.update()
-    ground = addon_part("operators.images").read_pixels(generate(scene, ball)).copy()
+    ground = addon_part("operators.scene.images").read_pixels(generate(scene, ball)).copy()
     scene.virtual_reflections.method = "CAMERA"
-    camera = addon_part("operators.images").read_pixels(generate(scene, ball))
+    camera = addon_part("operators.scene.images").read_pixels(generate(scene, ball))
     np.testing.assert_array_equal(ground, camera)

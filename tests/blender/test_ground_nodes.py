@@ -247,8 +247,8 @@ def test_the_contact_shadow_follows_the_artists_strength(addon, tmp_path, streng
     shows the object's shadow). The strength is held in the material and read back by the
     ray-traced pass."""
     scene, ball = grey_ground(strength)
-    group = ball.get(addon_part("operators.shading").RECORD)["group"]
-    held = group.nodes[addon_part("operators.ground_nodes").SHADOW_NODE]
+    group = ball.get(addon_part("operators.node_trees.shading").RECORD)["group"]
+    held = group.nodes[addon_part("operators.node_trees.ground_nodes").SHADOW_NODE]
     assert held.outputs[0].default_value == pytest.approx(strength)
     seen, hidden, ground = ground_seen(scene, tmp_path)
     near = ground & (hidden > 0.25)
@@ -261,7 +261,7 @@ def test_the_replace_map_is_the_same_for_every_pose(addon):
     lookup table's key, do not change when the ball moves; in the World look they do."""
     scene, ball, _ = make_shot()
     pipeline = addon_part("operators.pipeline")
-    plate = addon_part("operators.plate")
+    plate = addon_part("operators.scene.plate")
 
     def params():
         depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -283,7 +283,7 @@ def test_removing_takes_the_ground_group_away(addon):
     make_shot()
     assert any(g.name.startswith("VR Ground") for g in bpy.data.node_groups)
     addon_part("operators.generate").remove_all()
-    created = addon_part("operators.images").CREATED
+    created = addon_part("operators.scene.images").CREATED
     assert not [g.name for g in bpy.data.node_groups if g.get(created)]
 
 
@@ -291,7 +291,7 @@ def test_a_rough_surface_gets_a_blurred_map_with_the_ground_in_it(addon):
     """The Mix look (Glossy) on a rough material (0.35): the map is pre-filtered (smoother
     than the mirror's) and holds the ground seen from the centre, and no sharp per-point
     lookup is wired; a mirror material gets the per-point lookup."""
-    shading = addon_part("operators.shading")
+    shading = addon_part("operators.node_trees.shading")
     maps = {}
     for roughness in (0.0, 0.35):
         bpy.ops.wm.read_homefile(use_empty=True)
@@ -305,7 +305,7 @@ def test_a_rough_surface_gets_a_blurred_map_with_the_ground_in_it(addon):
         scene, ball, _ = make_shot_on(scene, bpy.context.active_object, combine="MIX")
         assert shading.roughness(ball) == pytest.approx(roughness)
         image = shading.map_of(ball)
-        maps[roughness] = addon_part("operators.images").read_pixels(image)[..., :3].copy()
+        maps[roughness] = addon_part("operators.scene.images").read_pixels(image)[..., :3].copy()
         grounds = [
             n for m in ball.material_slots for g in bpy.data.node_groups
             if g.get("vr_mode") == "MIX" for n in g.nodes if n.name == "VR Ground"

@@ -65,7 +65,7 @@ def test_toggle_installs_and_removes_the_handler(live):
 
 def test_moved_object_gets_a_small_map_then_the_full_one(live, shot):
     scene, ball, image = shot
-    maps = addon_part("operators.maps")
+    maps = addon_part("operators.scene.maps")
     before, version = pixels(image), maps.version(image)
     ball.location.x += 0.6
     bpy.context.view_layer.update()  # Blender calls the handler here
@@ -105,12 +105,12 @@ def test_unchanged_bounds_rebuild_nothing(live, shot):
     ball.location.x += 0.4
     bpy.context.view_layer.update()
     assert live.flush(scene, full=True).done == ["VR Map Ball"]
-    version = addon_part("operators.maps").version(image)
+    version = addon_part("operators.scene.maps").version(image)
     ball.location.x += 1e-5  # far below a plate pixel
     bpy.context.view_layer.update()
     assert live.pending() == {"Ball"}  # the handler only looks at what changed, cheaply
     assert live.flush(scene, full=False).done == []  # the rounded bounds are the same
-    assert addon_part("operators.maps").version(image) == version
+    assert addon_part("operators.scene.maps").version(image) == version
 
 
 def test_unrelated_edits_do_nothing(live, shot):
@@ -119,7 +119,7 @@ def test_unrelated_edits_do_nothing(live, shot):
     other = bpy.context.active_object  # no reflection
     bpy.context.view_layer.update()
     live.flush(scene)
-    version = addon_part("operators.maps").version(image)
+    version = addon_part("operators.scene.maps").version(image)
     other.location.x += 1.0
     other.rotation_euler.z += 0.5
     bpy.context.view_layer.update()
@@ -127,7 +127,7 @@ def test_unrelated_edits_do_nothing(live, shot):
     bpy.context.view_layer.update()
     assert live.pending() == set()
     assert live.flush(scene, full=True).done == []
-    assert addon_part("operators.maps").version(image) == version
+    assert addon_part("operators.scene.maps").version(image) == version
 
 
 def test_mesh_edits_and_camera_moves_are_followed(live, shot):

@@ -8,8 +8,8 @@ import OpenImageIO as oiio
 import pytest
 from shots import add_camera, addon_part, ramp_plate
 
-maps = addon_part("operators.maps")
-images = addon_part("operators.images")
+maps = addon_part("operators.scene.maps")
+images = addon_part("operators.scene.images")
 
 
 def smooth_map(width=256):

@@ -44,7 +44,7 @@ def render_mean(scene, path) -> np.ndarray:
     reason="bpy 4.5: Cycles with Persistent Data keeps an image's first pixels",
 )
 def test_a_map_rewritten_in_place_shows_in_the_next_persistent_render(addon, tmp_path):
-    maps = addon_part("operators.maps")
+    maps = addon_part("operators.scene.maps")
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 1

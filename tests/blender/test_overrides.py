@@ -42,7 +42,7 @@ def shot_with_asset(addon, library):
 
 
 def material_state(obj):
-    shading = addon_part("operators.shading")
+    shading = addon_part("operators.node_trees.shading")
     name = lambda mat: mat and (mat.name, mat.library is not None)  # noqa: E731
     return [(link, name(data), name(own)) for link, data, own in shading.slot_states(obj)]
 
@@ -64,7 +64,7 @@ def test_a_library_override_takes_a_reflection_and_gives_it_back(addon, library,
     assert bpy.ops.vr.generate() == {"FINISHED"}
     last = scene.virtual_reflections.last_report
     assert "linked" not in last and "read-only" not in last, last
-    shading = addon_part("operators.shading")
+    shading = addon_part("operators.node_trees.shading")
     assert shading.is_attached(ball) and shading.map_of(ball) is not None
     slot = ball.material_slots[0]
     assert slot.link == "OBJECT" and slot.material.library is None  # its own copy, local

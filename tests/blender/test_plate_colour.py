@@ -1,4 +1,4 @@
-"""Plates in the file's working space (operators/colour_space.py, images.read_linear).
+"""Plates in the file's working space (operators/scene/colour_space.py, images.read_linear).
 
 Blender converts float buffers (EXR, 16-bit PNG) to the file's working space on load, but a byte
 (8-bit) image's pixels stay its file's codes in the image's colour space. The reference here is
@@ -23,12 +23,12 @@ TAGS = ["sRGB", "Linear Rec.709", "Display P3"]
 
 @pytest.fixture
 def plates(addon):
-    return importlib.import_module(addon.__name__ + ".operators.plate")
+    return importlib.import_module(addon.__name__ + ".operators.scene.plate")
 
 
 @pytest.fixture
 def spaces(addon):
-    return importlib.import_module(addon.__name__ + ".operators.colour_space")
+    return importlib.import_module(addon.__name__ + ".operators.scene.colour_space")
 
 
 def set_working(name):

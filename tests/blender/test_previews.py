@@ -137,7 +137,7 @@ def test_presets_set_what_they_claim(addon, preset, expected):
 
 
 def test_preset_changes_the_look_of_objects_that_reflect(addon):
-    shading = addon_part("operators.shading")
+    shading = addon_part("operators.node_trees.shading")
     scene, ball = make_shot()
     assert ball[shading.RECORD]["mode"] == "REPLACE"
     ball.select_set(True)
@@ -151,7 +151,7 @@ def test_preset_changes_the_look_of_objects_that_reflect(addon):
 
 
 def test_auto_width_from_the_size_on_screen(addon):
-    choices = addon_part("operators.choices")
+    choices = addon_part("operators.scene.choices")
     auto_map_width = addon_part("virtual_reflections.mapsize").auto_map_width
     assert auto_map_width(10) == 256  # pi x 10 -> 32, raised to the floor
     assert auto_map_width(100) == 512  # pi x 100 = 314 -> 512
@@ -242,7 +242,7 @@ def test_a_scene_with_reflections_keeps_its_settings_on_load(addon, tmp_path, mo
 
 def test_saved_maps_folder(addon, tmp_path, monkeypatch):
     preferences = addon_part("preferences")
-    maps = addon_part("operators.maps")
+    maps = addon_part("operators.scene.maps")
     with pytest.raises(ValueError, match="save the .blend first"):
         maps.maps_folder()
     # The user folder needs an installed extension; loaded the test way it falls back.

@@ -78,7 +78,7 @@ def test_method_option_sets_the_scene_method(addon, tmp_path):
     """--method picks the camera-view or the paper's method; without it the shot's own stays."""
     import importlib
 
-    batch_render = importlib.import_module(f"{addon.__name__}.operators.batch_render")
+    batch_render = importlib.import_module(f"{addon.__name__}.operators.batch.render")
     render_shot = importlib.import_module("render_shot")
     settings = bpy.context.scene.virtual_reflections
     base = ["--plate", str(PLATE), "--out", str(tmp_path)]
@@ -106,7 +106,7 @@ def test_batch_takes_batch_options(addon, tmp_path):
     import importlib
     from types import SimpleNamespace
 
-    batch = importlib.import_module(f"{addon.__name__}.operators.batch")
+    batch = importlib.import_module(f"{addon.__name__}.operators.batch.shot")
     with pytest.raises(TypeError, match="BatchOptions"):
         batch.render_shot(SimpleNamespace(plate=str(PLATE), out=str(tmp_path)), 0.0)
 
@@ -118,7 +118,7 @@ def test_a_shot_set_up_in_the_panel_renders_as_the_artist_saw_it(addon, tmp_path
     import numpy as np
 
     compositor = addon_part("operators.compositor")
-    images = addon_part("operators.images")
+    images = addon_part("operators.scene.images")
     scene = bpy.context.scene
     add_camera(scene)
     bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0)

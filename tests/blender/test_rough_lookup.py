@@ -1,6 +1,6 @@
 """The Mix look of a rough surface reads its pre-filtered map at the centre of the GGX lobe
-(virtual_reflections/ggx_lobe.py dominant_shift, operators/reflection_nodes.py), not along
-the mirror direction: seen at a grazing angle, the lobe of a rough floor leans toward the
+(virtual_reflections/ggx_lobe.py dominant_shift, operators/node_trees/reflection_nodes.py),
+not along the mirror direction: seen at a grazing angle, the lobe of a rough floor leans toward the
 floor's normal, away from the horizon.
 
 A level camera 1 m above a rough floor (roughness 0.5); after Generate the floor's map is
@@ -73,8 +73,8 @@ def floor_shot(tmp_path):
         scene, bpy.context.evaluated_depsgraph_get(), [floor]
     )
     assert report.done == ["Floor"], report.warnings
-    image = addon_part("operators.shading").map_of(floor)
-    addon_part("operators.images").write_pixels(image, elevation_map(image.size[0]))
+    image = addon_part("operators.node_trees.shading").map_of(floor)
+    addon_part("operators.scene.images").write_pixels(image, elevation_map(image.size[0]))
 
     return render_transparent(scene, tmp_path / "floor.exr", samples=8)[..., 0], scene
 
@@ -110,7 +110,7 @@ def test_a_rough_floor_at_a_grazing_angle_reads_the_lobe_centre(addon, tmp_path)
 def test_a_mirror_floor_keeps_the_mirror_direction(addon):
     """A mirror's map is not pre-filtered and its group has no lobe-centre nodes; a rough
     one's has, with the shift of its roughness (and reuses no mirror's group)."""
-    shading = addon_part("operators.shading")
+    shading = addon_part("operators.node_trees.shading")
     groups = {}
     for roughness in (0.0, ROUGHNESS):
         bpy.ops.wm.read_homefile(use_empty=True)

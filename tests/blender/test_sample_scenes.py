@@ -76,7 +76,7 @@ def test_scene_is_built_over_the_plate(addon, scenes, kind, plate):
     # the objects: where the layout says, standing on the ground, marked, with materials
     layout = scenes.LAYOUT_OVERRIDES.get((kind, plate), scenes.LAYOUTS[kind])
     assert [o.name for o in built.objects] == [name for name, *_ in layout]
-    bounds = submodule(addon, "operators.bounds")
+    bounds = submodule(addon, "operators.scene.bounds")
     height = scenes.CAMERA_HEIGHT[plate]
     for obj, (_, fx, fy, _) in zip(built.objects, layout):
         assert obj.type == "MESH" and len(obj.data.polygons) >= 26
@@ -116,8 +116,8 @@ def test_generate_makes_a_map_per_object(addon, scenes, kind):
     built = scenes.build(kind, "courtyard", size=TINY, scale=100, samples=4, denoise=False)
     built.scene.virtual_reflections.resolution = "256"
     generate = submodule(addon, "operators.generate")
-    maps = submodule(addon, "operators.maps")
-    shading = submodule(addon, "operators.shading")
+    maps = submodule(addon, "operators.scene.maps")
+    shading = submodule(addon, "operators.node_trees.shading")
     report = generate.generate(
         bpy.context.scene, bpy.context.evaluated_depsgraph_get(), built.objects
     )

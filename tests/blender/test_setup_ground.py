@@ -16,7 +16,7 @@ def modules(addon):
     name = addon.__name__ + ".operators."
     return (
         importlib.import_module(name + "compositor"),
-        importlib.import_module(name + "floor"),
+        importlib.import_module(name + "scene.floor"),
     )
 
 

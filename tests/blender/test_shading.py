@@ -1,4 +1,4 @@
-"""operators/shading.py: the camera-frame lat-long lookup, material modes, world, detach.
+"""operators/node_trees/shading.py: the camera-frame lat-long lookup, material modes, world, detach.
 
 Pictures with known answers (docs/conventions.md): a chrome sphere with a map whose left half (the
 plate's left) is red must be red on its left side in the render, also after the camera moves.
@@ -24,17 +24,17 @@ VR_KINDS = ("material", "world", "reflection", "lookup", "latlong")
 
 @pytest.fixture
 def shading(addon):
-    return importlib.import_module(f"{addon.__name__}.operators.shading")
+    return importlib.import_module(f"{addon.__name__}.operators.node_trees.shading")
 
 
 @pytest.fixture
 def world(addon):
-    return importlib.import_module(f"{addon.__name__}.operators.world")
+    return importlib.import_module(f"{addon.__name__}.operators.node_trees.world")
 
 
 @pytest.fixture
 def reflection_nodes(addon):
-    return importlib.import_module(f"{addon.__name__}.operators.reflection_nodes")
+    return importlib.import_module(f"{addon.__name__}.operators.node_trees.reflection_nodes")
 
 
 # --- scene helpers ----------------------------------------------------------------------------

@@ -46,9 +46,9 @@ def up_and_ahead(scene, ball, others=()):
         scene, bpy.context.evaluated_depsgraph_get(), objects
     )
     assert report.done == [o.name for o in objects], report.warnings
-    image = addon_part("operators.shading").map_of(ball)
-    pixels = addon_part("operators.images").read_pixels(image)[..., :3]
-    bounds = addon_part("operators.bounds")
+    image = addon_part("operators.node_trees.shading").map_of(ball)
+    pixels = addon_part("operators.scene.images").read_pixels(image)[..., :3]
+    bounds = addon_part("operators.scene.bounds")
     projection = bounds.camera_projection(scene)
     up = np.array(bounds.to_engine_frame(projection, vector=(0, 0, 1)))
     ahead = np.subtract(
@@ -116,8 +116,8 @@ def test_a_rough_surface_sees_a_brighter_sky(addon):
 
 def test_the_batch_option_sets_the_surroundings(addon):
     """--surroundings reaches the scene's setting; a word it does not know is refused."""
-    options = addon_part("operators.batch_options")
-    render = addon_part("operators.batch_render")
+    options = addon_part("operators.batch.options")
+    render = addon_part("operators.batch.render")
     scene, _ = make_shot()
     render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="open"))
     assert scene.virtual_reflections.surroundings == "OPEN"
@@ -171,8 +171,8 @@ def test_the_batch_option_sets_the_sky_brightness(addon):
     """--sky-brightness sets Surroundings Custom and its brightness; --surroundings custom
     alone keeps the shot's brightness; a brightness with another named kind, or out of range,
     is refused in one line."""
-    options = addon_part("operators.batch_options")
-    render = addon_part("operators.batch_render")
+    options = addon_part("operators.batch.options")
+    render = addon_part("operators.batch.render")
     scene, _ = make_shot()
     render.configure(scene, options.BatchOptions(plate="p.exr", out="o", sky_brightness=2.5))
     settings = scene.virtual_reflections
@@ -282,5 +282,5 @@ def test_the_panel_says_where_the_ground_is_taken_from(addon):
     scene.virtual_reflections.ground_object = floor
     assert not any(t.startswith("Ground") for t in draw_method_panel(scene, [ball]).labels)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    floors = addon_part("operators.floor")
+    floors = addon_part("operators.scene.floor")
     assert floors.ground_source(scene, depsgraph, [ball]) == "Ground: 'Floor', chosen"

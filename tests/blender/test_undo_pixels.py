@@ -1,4 +1,4 @@
-"""The maps' pixels come back after undo and redo (operators/undo_pixels.py). Blender's undo
+"""The maps' pixels come back after undo and redo (operators/scene/undo_pixels.py). Blender's undo
 needs its window, so the undo itself is tested in tests/e2e/test_ui.py; here the memory."""
 
 import numpy as np
@@ -6,7 +6,8 @@ from shots import addon_part
 
 
 def test_restore_writes_back_what_was_written_under_the_images_token(addon):
-    maps, undo_pixels = addon_part("operators.maps"), addon_part("operators.undo_pixels")
+    maps = addon_part("operators.scene.maps")
+    undo_pixels = addon_part("operators.scene.undo_pixels")
     env = np.random.default_rng(1).random((8, 16, 3), dtype=np.float32)
     image = maps.store_map("VR Map Test", env)
     first = image[undo_pixels.TOKEN]
@@ -25,7 +26,8 @@ def test_restore_writes_back_what_was_written_under_the_images_token(addon):
 
 
 def test_memory_keeps_the_most_recent_within_the_budget(addon, monkeypatch):
-    maps, undo_pixels = addon_part("operators.maps"), addon_part("operators.undo_pixels")
+    maps = addon_part("operators.scene.maps")
+    undo_pixels = addon_part("operators.scene.undo_pixels")
     monkeypatch.setattr(undo_pixels, "BUDGET_BYTES", 3 * 8 * 16 * 3 * 4)  # three maps
     env = np.ones((8, 16, 3), np.float32)
     images = [maps.store_map(f"VR Map {i}", env) for i in range(5)]

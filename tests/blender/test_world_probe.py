@@ -1,5 +1,5 @@
-"""Surroundings: World HDRI (operators/world_probe.py): the scene's world, an on-set HDRI,
-stands in for the guessed sky where the plate shows none, turned by its Mapping node and as
+"""Surroundings: World HDRI (operators/node_trees/world_probe.py): the scene's world, an
+on-set HDRI, stands in for the guessed sky where the plate shows none, turned by its Mapping node and as
 bright as its Background's Strength; the world is read, never changed; a world without an
 HDRI says so and falls back to Auto.
 
@@ -60,12 +60,12 @@ def the_map(scene, ball):
         scene, bpy.context.evaluated_depsgraph_get(), [ball]
     )
     assert report.done == ["Ball"], report.warnings
-    image = addon_part("operators.shading").map_of(ball)
-    return addon_part("operators.images").read_pixels(image)[..., :3], report
+    image = addon_part("operators.node_trees.shading").map_of(ball)
+    return addon_part("operators.scene.images").read_pixels(image)[..., :3], report
 
 
 def directions(scene, pixels):
-    bounds = addon_part("operators.bounds")
+    bounds = addon_part("operators.scene.bounds")
     projection = bounds.camera_projection(scene)
     d = addon_part("virtual_reflections.layouts").texel_directions("latlong", pixels.shape[1])
     to_engine = np.array(
@@ -102,7 +102,7 @@ def test_the_world_hdri_fills_the_unseen_sky(addon, combine):
     assert pixels[behind][:, 0].mean() > 0.5 * RED[0] * STRENGTH
     assert pixels[side][:, 0].mean() < 0.2
     # what the plate shows is still the plate's
-    bounds = addon_part("operators.bounds")
+    bounds = addon_part("operators.scene.bounds")
     projection = bounds.camera_projection(scene)
     ahead = np.subtract(
         bounds.to_engine_frame(projection, point=(0.0, 2.2, 0.0)),
@@ -173,8 +173,8 @@ def test_the_exposure_is_checked_against_the_plate(addon):
 
 
 def test_the_batch_option_names_the_world(addon):
-    options = addon_part("operators.batch_options")
-    render = addon_part("operators.batch_render")
+    options = addon_part("operators.batch.options")
+    render = addon_part("operators.batch.render")
     scene, _ = make_shot()
     scene.world = bpy.data.worlds.new("Plain")
     with pytest.raises(ValueError, match="^--surroundings world: world 'Plain' has no Environment"):
@@ -188,8 +188,8 @@ def test_the_probe_is_the_world_cycles_renders(addon):
     """The frames agree with Blender's: a smooth HDRI (colour from the direction in its own
     frame) turned by a Mapping node on all three axes, seen by a camera looking up and to the
     side, rendered by Cycles, against the probe read along the same pixels' directions."""
-    bounds = addon_part("operators.bounds")
-    world_probe = addon_part("operators.world_probe")
+    bounds = addon_part("operators.scene.bounds")
+    world_probe = addon_part("operators.node_trees.world_probe")
     scene, ball = make_shot()
     ball.hide_render = True
     h, w = 64, 128
@@ -272,8 +272,8 @@ def test_live_update_follows_the_world_being_turned(addon):
         bpy.context.view_layer.update()
         assert live.pending() == {"Ball"}
         assert live.flush(scene, full=True).done
-        image = addon_part("operators.shading").map_of(ball)
-        after = addon_part("operators.images").read_pixels(image)[..., :3]
+        image = addon_part("operators.node_trees.shading").map_of(ball)
+        after = addon_part("operators.scene.images").read_pixels(image)[..., :3]
         behind = toward(directions(scene, after), 1, -1)
         assert before[behind][:, 0].mean() > 0.5 * RED[0] * STRENGTH  # red behind at +90
         assert after[behind][:, 0].mean() < 0.2  # turned away to +Y at -90
@@ -305,8 +305,8 @@ def test_every_frame_follows_an_animated_world(addon):
         scene.frame_set(frame)
         update = sequence.update(scene, bpy.context.evaluated_depsgraph_get(), frame=frame)
         assert update.maps, update.warnings
-        image = addon_part("operators.shading").map_of(ball)
-        pixels = addon_part("operators.images").read_pixels(image)[..., :3]
+        image = addon_part("operators.node_trees.shading").map_of(ball)
+        pixels = addon_part("operators.scene.images").read_pixels(image)[..., :3]
         red[frame] = pixels[toward(directions(scene, pixels), 1, -1)][:, 0].mean()
     assert red[1] > 0.5 * RED[0] * STRENGTH and red[2] < 0.2, red
 

@@ -58,7 +58,7 @@ addons = bpy.context.preferences.addons
 name = next(a.module for a in addons if a.module.endswith(".virtual_reflections"))
 prefs = addons[name].preferences
 prefs.combine, prefs.map_folder = "MODULATE", "USER"
-maps = importlib.import_module(name + ".operators.maps")
+maps = importlib.import_module(name + ".operators.scene.maps")
 bpy.ops.wm.read_homefile(use_empty=True)
 print("PREFS=" + json.dumps({
     "combine": bpy.context.scene.virtual_reflections.combine,

@@ -22,8 +22,8 @@ spec = importlib.util.spec_from_file_location("vr_setup_addon", root + "/__init_
                                               submodule_search_locations=[root])
 addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
 spec.loader.exec_module(addon); addon.register()
-spaces = sys.modules["vr_setup_addon.operators.colour_space"]
-plate = sys.modules["vr_setup_addon.operators.plate"]
+spaces = sys.modules["vr_setup_addon.operators.scene.colour_space"]
+plate = sys.modules["vr_setup_addon.operators.scene.plate"]
 result = {"view_before": bpy.context.scene.view_settings.view_transform}
 
 def write(path, pixels):

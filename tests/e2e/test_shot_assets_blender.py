@@ -20,7 +20,7 @@ spec = importlib.util.spec_from_file_location("vr_assets_addon", root + "/__init
                                               submodule_search_locations=[root])
 addon = importlib.util.module_from_spec(spec); sys.modules[spec.name] = addon
 spec.loader.exec_module(addon); addon.register()
-shading = importlib.import_module("vr_assets_addon.operators.shading")
+shading = importlib.import_module("vr_assets_addon.operators.node_trees.shading")
 
 
 def shot(scene, sphere_name):
