@@ -2,9 +2,11 @@
 sky the plate does not show is taken to be (virtual_reflections.params.SKY_GAINS), in the
 map and per frame, from the panel's setting and from the batch's --surroundings.
 
-The camera looks 35 degrees down at a grey ground, so the plate shows no sky: straight up
-from the ball the map holds the sky prior alone, a neutral grey `gain` times the plate's
-level, and the ground below it stays the plate's.
+The camera looks 35 degrees down at a brown ground, so the plate shows no sky: straight up
+from the ball the map holds the sky prior alone — under Auto the plate's mean colour
+AUTO_SKY_GAIN times as bright, its hue AUTO_SKY_TINT of the way from grey; under the other
+kinds a neutral grey `gain` times the plate's ground level — and the ground below it stays the
+plate's.
 """
 
 import math
@@ -16,6 +18,8 @@ from shots import add_camera, addon_part, ground_plate
 
 W, H = 160, 90
 GROUND = (0.18, 0.15, 0.12)
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+LEVEL = float(np.dot(GROUND, LUMA))  # the plate's level, its mean's and its ground band's
 
 
 def make_shot():
@@ -62,19 +66,29 @@ def up_and_ahead(scene, ball, others=()):
     return pixels[near_up].mean(0), pixels[near_ahead].mean(0)
 
 
+def auto_sky(params):
+    """Auto's unseen sky over this plate (params.AUTO_SKY_GAIN, AUTO_SKY_TINT)."""
+    share = params.AUTO_SKY_TINT
+    return params.AUTO_SKY_GAIN * LEVEL * ((1 - share) + share * np.array(GROUND) / LEVEL)
+
+
 def test_the_named_surroundings_set_the_unseen_sky(addon):
-    gains = addon_part("virtual_reflections.params").SKY_GAINS
+    params = addon_part("virtual_reflections.params")
     scene, ball = make_shot()
     assert scene.virtual_reflections.surroundings == "AUTO"
     sky, ground = {}, {}
     for kind in ("AUTO", "OPEN", "ENCLOSED"):
         scene.virtual_reflections.surroundings = kind
         sky[kind], ground[kind] = up_and_ahead(scene, ball)
-    for kind, colour in sky.items():
+    # Auto: the plate's own colour, brighter, warm as the ground is
+    np.testing.assert_allclose(sky["AUTO"], auto_sky(params), rtol=0.03)
+    assert sky["AUTO"][0] > sky["AUTO"][2]
+    for kind in ("OPEN", "ENCLOSED"):
+        colour = sky[kind]
         assert np.ptp(colour) < 0.02 * colour.mean(), (kind, colour)  # a neutral grey
-        ratio = colour.mean() / sky["AUTO"].mean()
-        assert ratio == pytest.approx(gains[kind.lower()] / gains["auto"], rel=0.02), kind
-        # the ground the plate shows is the plate's, whatever the sky
+        gain = params.SKY_GAINS[kind.lower()]
+        assert colour.mean() == pytest.approx(gain * LEVEL, rel=0.03), kind
+    for kind in sky:  # the ground the plate shows is the plate's, whatever the sky
         np.testing.assert_allclose(ground[kind], GROUND, atol=0.03)
     assert sky["ENCLOSED"].mean() < sky["AUTO"].mean() < sky["OPEN"].mean()
 
@@ -130,30 +144,31 @@ def test_the_batch_option_sets_the_surroundings(addon):
 
 
 def test_custom_surroundings_take_the_artists_sky_brightness(addon):
-    """Surroundings Custom: the unseen sky is Sky Brightness times the plate's level, in
-    proportion (straight up from the ball), the ground the plate shows unchanged; the map
-    follows the setting; a rough surface takes Auto's ratio over it."""
+    """Surroundings Custom: the unseen sky is a neutral grey Sky Brightness times the plate's
+    ground level (straight up from the ball; by default an average place's, 1.6), the ground
+    the plate shows unchanged; the map follows the setting; a rough surface takes Auto's ratio
+    over it."""
     params = addon_part("virtual_reflections.params")
     scene, ball = make_shot()
     settings = scene.virtual_reflections
     assert settings.sky_brightness == pytest.approx(params.SKY_GAINS["auto"])
-    auto, _ = up_and_ahead(scene, ball)
     settings.surroundings = "CUSTOM"
-    same, _ = up_and_ahead(scene, ball)  # the default brightness is Auto's
-    np.testing.assert_allclose(same, auto, rtol=0.02)
+    start, _ = up_and_ahead(scene, ball)
+    assert np.ptp(start) < 0.02 * start.mean()
+    assert start.mean() == pytest.approx(params.SKY_GAINS["auto"] * LEVEL, rel=0.03)
     sky = {}
     for brightness in (0.5, 4.0):
         settings.sky_brightness = brightness
         sky[brightness], ground = up_and_ahead(scene, ball)
         np.testing.assert_allclose(ground, GROUND, atol=0.03)
-        ratio = sky[brightness].mean() / auto.mean()
+        ratio = sky[brightness].mean() / start.mean()
         assert ratio == pytest.approx(brightness / params.SKY_GAINS["auto"], rel=0.03)
     assert params.sky_gain_for("custom", 0.35, 4.0) == pytest.approx(
         4.0 * params.sky_gain_for("auto", 0.35) / params.SKY_GAINS["auto"]
     )
     assert params.sky_gain_for("custom", 1.0, 100.0) == params.MAX_SKY_GAIN  # held in range
     # Sky Tint: the unseen sky takes its colour at the same luminance
-    luma = np.array([0.2126, 0.7152, 0.0722])
+    luma = LUMA
     settings.sky_tint = (1.0, 0.6, 0.3)  # a sunset
     orange, ground = up_and_ahead(scene, ball)
     np.testing.assert_allclose(ground, GROUND, atol=0.03)
