@@ -101,7 +101,57 @@ def run_motion(
         renders += 1
         return render(scene, work / f"{name}.exr", border)
 
-    # (a) plates and truths, frame by frame
+    plates, borders, where, truth = _plates_and_truths(
+        scene, camera, subject, material, spec, frames, looks, shot, work
+    )
+    # (b) each method and look as Update Every Frame runs it, on the plate sequence
+    settings = _on_the_plate_sequence(scene, others, subject, work)
+    labels = _labels(addon)
+    runs = [(m, look, r, c, False) for m in (methods or motion.METHODS) for look, r, c in looks]
+    if held and any(c == "WORLD" for _, _, c in looks):
+        runs.append(("GROUND", "rough 0.35", 0.35, "WORLD", True))
+    alone, updates, masks = {}, {}, [None] * frames
+    for method, look, roughness, combine, hold in runs:
+        name = motion.column(labels[method], look) + (f" ({HELD})" if hold else "")
+        settings.method, settings.combine = method, combine
+        scene.frame_set(1)
+        report = addon.generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [subject])
+        if not report.done:
+            raise RuntimeError(f"{motion_.name}: Generate ({name}) made nothing: {report.warnings}")
+        build.set_roughness(material, roughness)
+        alone[name], updates[name] = _every_frame(
+            scene, sequence, shot, name, hold, frames, plates, borders, masks
+        )
+        addon.generate.remove_all()
+        build.set_roughness(material, 0.0)
+
+    columns = _columns(looks, truth, alone, updates, masks, where)
+    record = motion_.to_json()
+    record.update(
+        {
+            "subject_pixels": [int(m.sum()) for m in masks],
+            "screen": [[round(c[0], 2), round(c[1], 2), round(r, 2)] for c, r in where],
+            "columns": columns,
+            "renders": renders,
+            "seconds": time.perf_counter() - started,
+        }
+    )
+    log(
+        f"{motion_.name}: {frames} frames, {renders} renders, {record['seconds']:.0f} s; "
+        + ", ".join(
+            f"{n}: max ratio {c['summary']['aligned']['max_ratio']:.2f}, "
+            f"pops {c['summary']['aligned']['pops']}"
+            for n, c in columns.items()
+            if "summary" in c
+        )
+    )
+    return record
+
+
+def _plates_and_truths(scene, camera, subject, material, spec, frames, looks, shot, work):
+    """Frame by frame, the plate (also written as plate_NNNN.png, the sequence the methods
+    read), the subject's render border, its place on screen and the truth of every look
+    (``shot(name, border)`` renders). Returns (plates, borders, places, truths by look)."""
     plates, borders, where, truth = [], [], [], {look: [] for look, _, _ in motion.LOOKS}
     for k in range(1, frames + 1):
         scene.frame_set(k)
@@ -117,8 +167,13 @@ def run_motion(
             build.set_roughness(material, roughness)
             truth[look].append(shot(f"truth {look} {k:04d}", borders[-1])[..., :3])
     build.set_roughness(material, 0.0)
+    return plates, borders, where, truth
 
-    # (b) each method and look as Update Every Frame runs it, on the plate sequence
+
+def _on_the_plate_sequence(scene, others, subject, work):
+    """Set the scene up for the methods: the neighbours hidden from render, a transparent
+    film, the plate_NNNN.png sequence of ``work`` as the plate, Auto resolution, the subject
+    enabled. Returns the scene's settings."""
     for obj in others:
         obj.hide_render = True
     scene.render.film_transparent = True
@@ -128,43 +183,41 @@ def run_motion(
     settings.plate_image = image
     settings.resolution = "AUTO"
     subject.virtual_reflections.enabled = True
-    labels = _labels(addon)
-    runs = [(m, look, r, c, False) for m in (methods or motion.METHODS) for look, r, c in looks]
-    if held and any(c == "WORLD" for _, _, c in looks):
-        runs.append(("GROUND", "rough 0.35", 0.35, "WORLD", True))
-    alone, updates, masks = {}, {}, [None] * frames
-    for method, look, roughness, combine, hold in runs:
-        name = motion.column(labels[method], look) + (f" ({HELD})" if hold else "")
-        settings.method, settings.combine = method, combine
-        scene.frame_set(1)
-        report = addon.generate.generate(scene, bpy.context.evaluated_depsgraph_get(), [subject])
-        if not report.done:
-            raise RuntimeError(f"{motion_.name}: Generate ({name}) made nothing: {report.warnings}")
-        filters, alone[name], updates[name] = {}, [], []
-        build.set_roughness(material, roughness)
-        for k in range(1, frames + 1):
-            scene.frame_set(k)
-            if not hold or (k - 1) % HOLD == 0:
-                t0 = time.perf_counter()
-                result = sequence.update(
-                    scene, bpy.context.evaluated_depsgraph_get(), filters=filters, frame=k
-                )
-                updates[name].append(
-                    {
-                        "seconds": round(time.perf_counter() - t0, 4),
-                        "maps": len(result.maps),
-                        "tables_built": result.tables["built"],
-                        "warnings": result.warnings,
-                    }
-                )
-            rgba = shot(f"{name} {k:04d}", borders[k - 1])
-            if masks[k - 1] is None:
-                masks[k - 1] = rgba[..., 3] > 0.5
-            alone[name].append(rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plates[k - 1])
-        addon.generate.remove_all()
-        build.set_roughness(material, 0.0)
+    return settings
 
-    # (c) the measures on the subject's pixels
+
+def _every_frame(scene, sequence, shot, name, hold, frames, plates, borders, masks):
+    """One method and look as Update Every Frame runs it after Generate: `sequence.update` at
+    every frame (``hold``: every HOLD-th only), the subject rendered alone and composited over
+    that frame's plate. Fills ``masks`` (the subject's pixels per frame) where still None.
+    Returns (the composites, the updates' reports)."""
+    filters, alone, updates = {}, [], []
+    for k in range(1, frames + 1):
+        scene.frame_set(k)
+        if not hold or (k - 1) % HOLD == 0:
+            t0 = time.perf_counter()
+            result = sequence.update(
+                scene, bpy.context.evaluated_depsgraph_get(), filters=filters, frame=k
+            )
+            updates.append(
+                {
+                    "seconds": round(time.perf_counter() - t0, 4),
+                    "maps": len(result.maps),
+                    "tables_built": result.tables["built"],
+                    "warnings": result.warnings,
+                }
+            )
+        rgba = shot(f"{name} {k:04d}", borders[k - 1])
+        if masks[k - 1] is None:
+            masks[k - 1] = rgba[..., 3] > 0.5
+        alone.append(rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plates[k - 1])
+    return alone, updates
+
+
+def _columns(looks, truth, alone, updates, masks, where) -> dict:
+    """The measures on the subject's pixels: per look the truth's changes, per method and look
+    its PSNR per frame, its changes, their summary against the truth's and its updates."""
+
     def series(images):
         return [(to_display(img), masks[i], *where[i]) for i, img in enumerate(images)]
 
@@ -189,26 +242,7 @@ def run_motion(
             "summary": motion.summarise(got, truth_changes[look]),
             "updates": updates[name],
         }
-    record = motion_.to_json()
-    record.update(
-        {
-            "subject_pixels": [int(m.sum()) for m in masks],
-            "screen": [[round(c[0], 2), round(c[1], 2), round(r, 2)] for c, r in where],
-            "columns": columns,
-            "renders": renders,
-            "seconds": time.perf_counter() - started,
-        }
-    )
-    log(
-        f"{motion_.name}: {frames} frames, {renders} renders, {record['seconds']:.0f} s; "
-        + ", ".join(
-            f"{n}: max ratio {c['summary']['aligned']['max_ratio']:.2f}, "
-            f"pops {c['summary']['aligned']['pops']}"
-            for n, c in columns.items()
-            if "summary" in c
-        )
-    )
-    return record
+    return columns
 
 
 def run_motions(motions, work, width, samples, log, held=True, methods=None, looks=None):
