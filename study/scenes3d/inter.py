@@ -126,58 +126,13 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
     changed = np.abs(to_display(truth) - to_display(blind)).max(-1) > INTER_THRESHOLD
     region = mask & changed
 
-    settings = scene.virtual_reflections
-    settings.plate_image = plate_image
-    settings.resolution = "AUTO"
-    settings.combine = "REPLACE"
-    for obj in objects:
-        obj.virtual_reflections.enabled = True
-    pixels, _ = addon.plate.pixels(scene)
-    passes, warnings = {}, {}
-    for ident, label in addon.methods:
-        settings.method = ident
-        passes[label] = {}
-        for run, asked, placed in RUNS:
-            depsgraph = bpy.context.evaluated_depsgraph_get()
-            t0 = time.perf_counter()
-            _, rgba, reports = addon.interreflect.render_passes(
-                scene, depsgraph, objects, pixels, passes=asked, neighbours=placed
-            )
-            seconds = time.perf_counter() - t0
-            renders += len(reports)
-            warnings[label] = sorted({w for r in reports for w in r.warnings})
-            alone[f"{label}: {run}"] = rgba
-            passes[label][run] = {
-                "passes": len(reports),
-                "changes": [r.change for r in reports],
-                "seconds": seconds,
-            }
-            addon.generate.remove_all()
+    passes, warnings, count = _run_passes(scene, addon, objects, plate_image, alone)
+    renders += count
     traced_label = _traced_blind(scene, addon, objects, border, alone, shot)
 
-    results, inter, crops = {}, {}, {}
-    y0, y1, x0, x1 = crop
-    composites = {
-        column: rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate for column, rgba in alone.items()
-    }
-    composites[PLATE_ITSELF] = plate
-    composites[BLIND] = blind
-    for column, composite in composites.items():
-        results[column] = score(composite, truth, mask, crop)
-        inter[column] = score(composite, truth, region, crop) if region.any() else None
-        crops[column] = to_display(composite[y0:y1, x0:x1])
-    crops["Truth"] = to_display(truth[y0:y1, x0:x1])
-    for label in passes:
-        for run, _, _ in RUNS:
-            passes[label][run].update(results[f"{label}: {run}"])
-            passes[label][run]["inter"] = inter[f"{label}: {run}"]
-        # the most passes could bring: one pass with the inter pixels exactly the truth's
-        perfect = composites[f"{label}: {ONE}"].copy()
-        perfect[region] = truth[region]
-        passes[label][CEILING] = score(perfect, truth, mask, crop)
-    if traced_label is not None:
-        blind_traced = f"{traced_label}: {TRACED_BLIND}"
-        passes[traced_label][TRACED_BLIND] = dict(results[blind_traced], inter=inter[blind_traced])
+    results, inter, crops = _scored(
+        alone, plate, blind, truth, mask, region, crop, passes, traced_label
+    )
     record = {
         "scene": spec.to_json(),
         "mirrors": len(objects),
@@ -204,6 +159,72 @@ def run_scene(spec: Scene3D, addon: InterAddon, work: pathlib.Path, width, sampl
         f"{renders} renders)"
     )
     return record, crops
+
+
+def _run_passes(scene, addon, objects, plate_image, alone):
+    """Each add-on method's runs of RUNS (one pass; the passes with the maps as built; auto)
+    on the mirrors over the plate, Replace look, each composite's RGBA put in ``alone``.
+    Returns (per method and run its passes, changes and seconds; per method its warnings;
+    the number of renders)."""
+    settings = scene.virtual_reflections
+    settings.plate_image = plate_image
+    settings.resolution = "AUTO"
+    settings.combine = "REPLACE"
+    for obj in objects:
+        obj.virtual_reflections.enabled = True
+    pixels, _ = addon.plate.pixels(scene)
+    passes, warnings, count = {}, {}, 0
+    for ident, label in addon.methods:
+        settings.method = ident
+        passes[label] = {}
+        for run, asked, placed in RUNS:
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            t0 = time.perf_counter()
+            _, rgba, reports = addon.interreflect.render_passes(
+                scene, depsgraph, objects, pixels, passes=asked, neighbours=placed
+            )
+            seconds = time.perf_counter() - t0
+            count += len(reports)
+            warnings[label] = sorted({w for r in reports for w in r.warnings})
+            alone[f"{label}: {run}"] = rgba
+            passes[label][run] = {
+                "passes": len(reports),
+                "changes": [r.change for r in reports],
+                "seconds": seconds,
+            }
+            addon.generate.remove_all()
+    return passes, warnings, count
+
+
+def _scored(alone, plate, blind, truth, mask, region, crop, passes, traced_label):
+    """Every column composited over the plate (and the plate itself, the blind truth) scored
+    on the mirrors' pixels and on the inter pixels, the scores put in ``passes`` with each
+    method's ceiling (one pass with the inter pixels the truth's). Returns (scores, inter
+    scores, display crops)."""
+    results, inter, crops = {}, {}, {}
+    y0, y1, x0, x1 = crop
+    composites = {
+        column: rgba[..., :3] + (1.0 - rgba[..., 3:4]) * plate for column, rgba in alone.items()
+    }
+    composites[PLATE_ITSELF] = plate
+    composites[BLIND] = blind
+    for column, composite in composites.items():
+        results[column] = score(composite, truth, mask, crop)
+        inter[column] = score(composite, truth, region, crop) if region.any() else None
+        crops[column] = to_display(composite[y0:y1, x0:x1])
+    crops["Truth"] = to_display(truth[y0:y1, x0:x1])
+    for label in passes:
+        for run, _, _ in RUNS:
+            passes[label][run].update(results[f"{label}: {run}"])
+            passes[label][run]["inter"] = inter[f"{label}: {run}"]
+        # the most passes could bring: one pass with the inter pixels exactly the truth's
+        perfect = composites[f"{label}: {ONE}"].copy()
+        perfect[region] = truth[region]
+        passes[label][CEILING] = score(perfect, truth, mask, crop)
+    if traced_label is not None:
+        blind_traced = f"{traced_label}: {TRACED_BLIND}"
+        passes[traced_label][TRACED_BLIND] = dict(results[blind_traced], inter=inter[blind_traced])
+    return results, inter, crops
 
 
 def _traced_blind(scene, addon, objects, border, alone, shot):

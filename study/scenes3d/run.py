@@ -180,14 +180,56 @@ def run_scene(
     crop = border_pixels(border, width, height)
 
     # (b) the truth, the subject in the full scene
+    truth = _truths(material, shot, border)
+
+    # (c) the subject alone over the plate
+    plate_image, plate8, alone = _baselines(scene, others, dome, material, spec, work, shot, border)
+
+    times, warnings, methods = _addon_methods(
+        scene, subject, others, material, spec, addon, plate_image, alone, shot, border,
+        ground_chosen, named,
+    )  # fmt: skip
+
+    # scores on the subject's pixels
+    mask = alone["mirror"][PROBE][..., 3] > 0.5
+    results, crops = _scores(alone, truth, plate, mask, crop)
+    finite = {label: bool(np.isfinite(alone["mirror"][label]).all()) for _, label in methods}
+    record = {
+        "scene": spec.to_json(),
+        "subject_pixels": int(mask.sum()),
+        "results": results,
+        "generate_s": times,
+        "finite": finite,
+        "warnings": warnings,
+        "renders": renders,
+        "seconds": time.perf_counter() - started,
+        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
+    }
+    mirror = results["mirror"]
+    log(
+        f"{spec.name}: {mask.sum()} px, mirror PSNR "
+        + ", ".join(f"{m} {v['psnr']:.1f}" for m, v in mirror.items())
+        + f" ({record['seconds']:.0f} s, {renders} renders)"
+    )
+    return record, crops
+
+
+def _truths(material, shot, border) -> dict:
+    """The truth per material of MATERIALS: the subject in the full scene, one render per
+    roughness (``shot(name, border)`` renders)."""
     truth, by_roughness = {}, {}
     for name, roughness, _ in MATERIALS:
         if roughness not in by_roughness:
             build.set_roughness(material, roughness)
             by_roughness[roughness] = shot(f"truth {name}", border)[..., :3]
         truth[name] = by_roughness[roughness]
+    return truth
 
-    # (c) the subject alone over the plate
+
+def _baselines(scene, others, dome, material, spec, work, shot, border):
+    """The neighbours hidden, the film transparent: the baselines' renders of the subject
+    alone (the on-set probe, the plate stretched, the plate mean) per roughness. Returns (the
+    8-bit plate as a Blender image, it linear, {material: {baseline: RGBA}})."""
     for obj in others:
         obj.hide_render = True
     scene.render.film_transparent = True
@@ -210,7 +252,17 @@ def run_scene(
         alone[name].update(baselines[roughness])
     scene.world = dome
     build.set_roughness(material, 0.0)
+    return plate_image, plate8, alone
 
+
+def _addon_methods(
+    scene, subject, others, material, spec, addon, plate_image, alone, shot, border,
+    ground_chosen, named,
+):  # fmt: skip
+    """Each add-on method (and the GROUND_CHOSEN, NAMED and WORLD_HDRI rows if asked): one
+    Generate per look and, in the Mix and World looks, per roughness, the subject rendered
+    alone into ``alone``. Returns (Generate's seconds per method and look, its warnings, the
+    (identifier, label) of every method run)."""
     settings = scene.virtual_reflections
     settings.plate_image = plate_image
     settings.resolution = "AUTO"
@@ -258,9 +310,12 @@ def run_scene(
             build.set_roughness(material, 0.0)
     settings.ground_object = None
     settings.surroundings = "AUTO"
+    return times, warnings, methods
 
-    # scores on the subject's pixels
-    mask = alone["mirror"][PROBE][..., 3] > 0.5
+
+def _scores(alone, truth, plate, mask, crop):
+    """Each material's and method's composite over the plate scored against the truth on
+    ``mask``, and the plate itself; the mirror's display crops with the truth's."""
     results, crops = {}, {}
     for name, _, _ in MATERIALS:
         results[name] = {}
@@ -273,25 +328,7 @@ def run_scene(
         results[name]["(plate itself)"] = score(plate, truth[name], mask, crop)
     y0, y1, x0, x1 = crop
     crops["Truth"] = to_display(truth["mirror"][y0:y1, x0:x1])
-    finite = {label: bool(np.isfinite(alone["mirror"][label]).all()) for _, label in methods}
-    record = {
-        "scene": spec.to_json(),
-        "subject_pixels": int(mask.sum()),
-        "results": results,
-        "generate_s": times,
-        "finite": finite,
-        "warnings": warnings,
-        "renders": renders,
-        "seconds": time.perf_counter() - started,
-        "plate_mean": [float(c) for c in plate8.reshape(-1, 3).mean(0)],
-    }
-    mirror = results["mirror"]
-    log(
-        f"{spec.name}: {mask.sum()} px, mirror PSNR "
-        + ", ".join(f"{m} {v['psnr']:.1f}" for m, v in mirror.items())
-        + f" ({record['seconds']:.0f} s, {renders} renders)"
-    )
-    return record, crops
+    return results, crops
 
 
 def surroundings_of(spec: Scene3D, surroundings) -> str | None:
