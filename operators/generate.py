@@ -13,11 +13,11 @@ from dataclasses import dataclass
 
 import bpy
 
-from ..virtual_reflections.composite import union_box
 from . import pipeline
 from .node_trees import shading, world, world_probe
 from .scene import maps, plate
 from .scene.choices import map_width
+from .scene.composite import union_box
 
 RENDER_START_GRACE = 5.0  # s: an invoked render job not seen running by then counts as over
 

@@ -55,12 +55,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..virtual_reflections import methods
-from ..virtual_reflections.composite import nearest_rows, over, resize_nearest
 from ..virtual_reflections.layouts import latlong_directions
 from ..virtual_reflections.plainexr import read_channels
 from . import generate, traced_pass
 from .node_trees import shading
 from .scene import bounds, images, maps
+from .scene.composite import nearest_rows, over, resize_nearest
 from .scene.plate import NO_PLATE, scene_plate
 
 R_MAX = 8  # the most passes "auto" renders unless told otherwise

@@ -31,12 +31,12 @@ from dataclasses import dataclass, field, replace
 import bpy
 
 from ..virtual_reflections import methods
-from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.mipmap import build_pyramid, level_shapes, level_view
 from . import pipeline, previews
 from .node_trees import shading, world_probe
 from .scene import app_handlers, maps, plate
 from .scene.choices import map_width
+from .scene.composite import union_box
 
 MOVING_WIDTH = 256  # map width while the object moves
 PLATE_MARGIN = 1.5  # the reduced plate stays at least this many times the moving map's width

@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..virtual_reflections import Params, lookup_table, methods
-from ..virtual_reflections.composite import scale_box
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.ggx_lobe import dominant_shift
@@ -29,6 +28,7 @@ from ..virtual_reflections.probe import with_probe
 from .node_trees import shading, world_probe
 from .node_trees.ground_nodes import GroundLookup
 from .scene import bounds, plate
+from .scene.composite import scale_box
 from .scene.floor import ground_height, objects_box, objects_centre
 
 LARGE_SHARE = 0.4  # an object covering more of the plate leaves little to reflect

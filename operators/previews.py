@@ -18,11 +18,11 @@ import bpy.utils.previews
 import numpy as np
 
 from ..virtual_reflections import methods, segment
-from ..virtual_reflections.composite import union_box
 from ..virtual_reflections.overlay import draw_segmentation
 from . import pipeline
 from .node_trees import shading
 from .scene import colour_space, images, maps, plate
+from .scene.composite import union_box
 
 PREVIEW_WIDTH = 256  # pixels across a preview image (maps: 256 x 128)
 OVERLAY = "overlay"  # the CREATED value of the full-size segmentation picture

@@ -44,10 +44,10 @@ import bpy
 import numpy as np
 
 from ..virtual_reflections import methods
-from ..virtual_reflections.composite import union_box
 from . import pipeline
 from .node_trees import shading
 from .scene import floor, maps, plate
+from .scene.composite import union_box
 
 # --- bounds over time --------------------------------------------------------------------------
 

@@ -44,6 +44,12 @@ And one on the engine's public surface:
 6. every function or class in `virtual_reflections.__all__` (and every public function of a
    module listed there, as `cache`) has a numpydoc docstring: a one-line summary and, for a
    function that takes parameters, a Parameters section (issue 43, item 7).
+11. code outside the engine (every Python file but `virtual_reflections/` and `tests/`, which
+    test its insides) imports from it only what its `__all__` names: a name of the package
+    (`from virtual_reflections import Params`) or a module listed there
+    (`from virtual_reflections.imagefiles import read_rgba`, also by name in
+    `import_module`); the engine's other modules are its own. What it imports from a listed
+    module carries a numpydoc docstring, as rule 6's (issue 43, item 4).
 """
 
 from __future__ import annotations
@@ -965,3 +971,136 @@ def test_the_rule_10_sees_the_payload_ladder(tmp_path):
         f"{ENGINE}/table.py:3 LookupTable.index",
         f"{ENGINE}/table.py:5 LookupTable.trilinear",
     ]
+
+
+# --- rule 11: outside code imports only what the engine's __all__ names --------------------
+
+
+def engine_surface(root: Path) -> set[str]:
+    """The names of the engine's `__all__`: its own names and the modules others may import."""
+    tree = ast.parse((root / ENGINE / "__init__.py").read_text(encoding="utf-8"))
+    return set(
+        next(
+            ast.literal_eval(node.value)
+            for node in tree.body
+            if isinstance(node, ast.Assign)
+            and any(getattr(t, "id", "") == "__all__" for t in node.targets)
+        )
+    )
+
+
+def engine_imports_from_outside(root: Path) -> list[tuple[str, int, str, tuple[str, ...]]]:
+    """(file, line, engine module or "" for the package, names taken) of every import of the
+    engine by a Python file outside it and outside tests/: `import`, `from ... import` (relative
+    ones resolved from the file's folder) and a literal "...virtual_reflections.<module>"
+    handed to `import_module`."""
+    found = []
+    for path in python_files(root):
+        parts = path.relative_to(root).parts
+        if parts[0] in (ENGINE, "tests"):
+            continue
+        where = path.relative_to(root).as_posix()
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=where)
+        package = list(parts[:-1])
+        for node in ast.walk(tree):
+            targets = []
+            if isinstance(node, ast.Import):
+                targets = [(a.name, ()) for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = node.level - 1
+                    if up > len(package):
+                        continue
+                    base = _join(".".join(package[: len(package) - up]), base)
+                targets = [(base, tuple(a.name for a in node.names))]
+            elif isinstance(node, ast.Call) and _called_name(node.func) == "import_module":
+                for arg in ast.walk(node):
+                    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+                        text = arg.value.lstrip(".")
+                        if text == ENGINE or text.startswith(ENGINE + "."):
+                            targets.append((text, ()))
+                        elif f".{ENGINE}." in arg.value:
+                            targets.append((ENGINE + arg.value.split(f".{ENGINE}", 1)[1], ()))
+            for target, names in targets:
+                dotted = target.split(".")
+                if dotted[0] != ENGINE:
+                    continue
+                module = dotted[1] if len(dotted) > 1 else ""
+                found.append((where, node.lineno, module, names))
+    return found
+
+
+def outside_engine_imports(root: Path) -> list[str]:
+    """`file:line what` of each import from outside the engine of a module or a name its
+    `__all__` does not list (rule 11)."""
+    surface = engine_surface(root)
+    problems = []
+    for where, line, module, names in engine_imports_from_outside(root):
+        if module:
+            if module not in surface:
+                problems.append(f"{where}:{line} {ENGINE}.{module}")
+        else:
+            problems += [f"{where}:{line} {ENGINE}.{n}" for n in names if n not in surface]
+    return sorted(set(problems))
+
+
+def engine_defs_used_outside(root: Path) -> dict[str, ast.AST]:
+    """{module.name: def or class node} of the public names outside code imports from a listed
+    module."""
+    wanted = {}
+    for _, _, module, names in engine_imports_from_outside(root):
+        if module:
+            wanted.setdefault(module, set()).update(names)
+    defs = {}
+    for module, names in wanted.items():
+        path = root / ENGINE / f"{module}.py"
+        if not path.is_file():
+            continue
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and node.name in names:
+                if not _private(node.name):
+                    defs[f"{module}.{node.name}"] = node
+    return defs
+
+
+def test_outside_code_imports_only_the_engines_public_surface():
+    problems = outside_engine_imports(REPO)
+    assert not problems, _report(
+        "imports of engine modules or names its __all__ does not list (list them there or "
+        "take them from a listed module)",
+        problems,
+    )
+
+
+def test_what_outside_code_imports_from_the_engine_is_documented():
+    defs = engine_defs_used_outside(REPO)
+    assert {"imagefiles.read_rgba", "atomic_files.commit"} <= set(defs)
+    problems = docstring_problems(defs)
+    assert not problems, _report("engine names used outside without a numpydoc docstring", problems)
+
+
+def test_the_rule_11_sees_every_way_in(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            f"{ENGINE}/__init__.py": "from .m import f\n__all__ = ['f', 'pub']\n",
+            f"{ENGINE}/m.py": "def f():\n    pass\ndef g():\n    pass\n",
+            f"{ENGINE}/pub.py": "def h(x):\n    pass\n",
+            f"{ENGINE}/own.py": "from .m import g\n",
+            "operators/__init__.py": "",
+            "operators/a.py": "from ..virtual_reflections import f, g\n"
+            "from ..virtual_reflections.pub import h\nfrom ..virtual_reflections.own import x\n",
+            "study/b.py": "import virtual_reflections.own\nfrom importlib import import_module\n"
+            "m = import_module(name + '.virtual_reflections.m')\n"
+            "p = import_module('virtual_reflections.pub')\n",
+            "tests/t.py": "from virtual_reflections.own import g\n",
+        },
+    )
+    assert outside_engine_imports(root) == [
+        f"operators/a.py:1 {ENGINE}.g",
+        f"operators/a.py:3 {ENGINE}.own",
+        f"study/b.py:1 {ENGINE}.own",
+        f"study/b.py:3 {ENGINE}.m",
+    ]
+    assert docstring_problems(engine_defs_used_outside(root)) == ["pub.h: no docstring"]

@@ -12,6 +12,10 @@ from .params import Params
 from .segmentation import Rect, Segmentation, segment
 from .table import LookupTable, build_table, lookup_table
 
+# What others may use (the add-on, the study, the benchmarks, the farm, the sample scenes): the
+# names above and the modules below, imported as `from virtual_reflections.<module> import ...`
+# (each loaded when imported, not with the package). The engine's other modules are its own;
+# tests/test_architecture.py keeps every import from outside to this list.
 __all__ = [
     "DEFAULT_SIZE",
     "LookupTable",
@@ -24,4 +28,30 @@ __all__ = [
     "environment_map",
     "lookup_table",
     "segment",
+    # modules
+    "atomic_files",
+    "backends",
+    "camera_view",
+    "cli_common",
+    "colour",
+    "envmap",
+    "fill",
+    "frames",
+    "ggx_lobe",
+    "imagefiles",
+    "interrupts",
+    "layouts",
+    "mapsize",
+    "memory",
+    "methods",
+    "mipmap",
+    "movies",
+    "overlay",
+    "parallel",
+    "params",
+    "plainexr",
+    "prefilter",
+    "probe",
+    "segmentation",
+    "table",
 ]

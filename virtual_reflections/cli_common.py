@@ -65,6 +65,17 @@ def stopped(prog: str, exc: KeyboardInterrupt) -> int:
 
 
 def words(choices) -> str:
-    """("a", "b", "c") -> "a, b or c"."""
+    """A list in words: ("a", "b", "c") -> "a, b or c".
+
+    Parameters
+    ----------
+    choices : sequence
+        One or more values, each written with ``str``.
+
+    Returns
+    -------
+    str
+        The values joined by ", ", the last by " or ".
+    """
     choices = [str(c) for c in choices]
     return ", ".join(choices[:-1]) + " or " + choices[-1] if len(choices) > 1 else choices[0]

@@ -18,9 +18,24 @@ import struct
 
 
 def whole_frames(path: str) -> int | None:
-    """The number of video frames of movie ``path`` whose bytes are all in the file (0 when
-    its index is missing), or None when its container is not one this module reads.
-    OSError when the file cannot be read."""
+    """Count the video frames of a movie whose bytes are all in the file.
+
+    Parameters
+    ----------
+    path : str
+        The movie file (.mp4, .mov, .m4v, .mkv, .webm, .avi).
+
+    Returns
+    -------
+    int or None
+        The whole frames (0 when its index is missing), or None when its container is not one
+        this module reads.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be read.
+    """
     with open(path, "rb") as f:
         if os.fstat(f.fileno()).st_size < 12:
             return 0
@@ -252,7 +267,18 @@ def _avi_frames(data):
 
 
 def frames_text(frames) -> str:
-    """Frame numbers as short ranges: [5, 6, 7, 9] -> "5-7, 9"."""
+    """Frame numbers as short ranges: [5, 6, 7, 9] -> "5-7, 9".
+
+    Parameters
+    ----------
+    frames : iterable of int
+        Frame numbers, in any order.
+
+    Returns
+    -------
+    str
+        Runs of consecutive frames as "a-b", single frames as "a", joined by ", ".
+    """
     runs = []
     for f in sorted(frames):
         if runs and f == runs[-1][1] + 1:

@@ -25,12 +25,12 @@ from ...virtual_reflections.atomic_files import (
     remove_stale_temps,
     temp_path,
 )
-from ...virtual_reflections.composite import over, resize_nearest
 from ...virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
 from ...virtual_reflections.imagefiles import check_complete, write_rgba
 from ...virtual_reflections.movies import frames_text, whole_frames
 from .. import compositor, generate, interreflect, sequence
 from ..scene import plate
+from ..scene.composite import over, resize_nearest
 from . import record
 from .lock import OutputLock
 from .options import BatchOptions

@@ -27,11 +27,11 @@ from ...virtual_reflections.atomic_files import (
     remove_stale_temps,
     temp_path,
 )
-from ...virtual_reflections.composite import over, resize_nearest
 from ...virtual_reflections.frames import parse_frames
 from ...virtual_reflections.imagefiles import write_rgba
 from .. import compositor, generate, interreflect
 from ..scene import plate
+from ..scene.composite import over, resize_nearest
 from .lock import OutputLock
 from .options import BatchOptions, check_name
 from .ranges import PlateSource, render_frames

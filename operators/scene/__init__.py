@@ -5,6 +5,7 @@
     bounds, floor                    -- screen boxes through the camera; where objects stand
     plate, camera_match              -- the scene's plate; the camera from the photo
     undo_pixels, maps                -- maps' pixels back after undo; map images
+    composite                        -- a render over its plate, boxes combined (NumPy)
 
 They import no other room of the add-on.
 """

@@ -1,5 +1,5 @@
 """operators/compositor.py and plate.py: plate pixels, the scene's plate, compositor set-up and
-undo, alpha-over (engine composite.py).
+undo, alpha-over (operators/scene/composite.py).
 
 Plates are written with OpenImageIO (top row first) into tmp_path. Colour: arrays are
 scene-linear Rec.709 float32; 8-bit files are sRGB-encoded. The compositor differs between
@@ -34,7 +34,7 @@ def plates(addon):
 
 @pytest.fixture
 def composite(addon):
-    return importlib.import_module(addon.__name__ + ".virtual_reflections.composite")
+    return importlib.import_module(addon.__name__ + ".operators.scene.composite")
 
 
 @pytest.fixture
