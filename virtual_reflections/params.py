@@ -77,7 +77,8 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
     Parameters
     ----------
     kind : str
-        As for `sky_gain_for`.
+        A key of SKY_GAINS; another (as "world", whose HDRI replaces the prior where it can)
+        is taken as "auto".
     roughness : float, optional
         As for `sky_gain_for`.
     custom : float, optional
@@ -88,7 +89,7 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
     dict
         ``sky_gain``, ``sky_source`` and ``sky_tint_share``, to pass to `Params`.
     """
-    if kind != "auto" or custom is not None:
+    if custom is not None or (kind != "auto" and kind in SKY_GAINS):  # world, unknown: Auto's
         gain = sky_gain_for(kind, roughness, custom)
         return {"sky_gain": gain, "sky_source": "ground", "sky_tint_share": 0.0}
     ratio = sky_gain_for("auto", roughness) / SKY_GAINS["auto"]

@@ -185,6 +185,7 @@ def test_the_sky_prior_for_each_surroundings():
     assert sky_prior_for("auto") == {
         "sky_gain": AUTO_SKY_GAIN, "sky_source": "plate", "sky_tint_share": AUTO_SKY_TINT
     }  # fmt: skip
+    assert sky_prior_for("world") == sky_prior_for("auto")  # no HDRI in the world: Auto's
     ratio = sky_gain_for("auto", 0.35) / SKY_GAINS["auto"]
     assert sky_prior_for("auto", 0.35)["sky_gain"] == pytest.approx(AUTO_SKY_GAIN * ratio)
     for kind, custom in (("open", None), ("enclosed", None), ("custom", 2.5)):
