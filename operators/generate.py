@@ -136,102 +136,137 @@ def steps(scene, depsgraph, objects, pixels=None):
     report = pipeline.Report()
     image = plate.require_plate(scene)
     yield Step("Reading the plate", 0.0)
-    pyramids = {}  # the plate's pyramids, shared by every object's map
-    with report.timed("plate"):
-        if pixels is None:
-            found = plate.frame(scene, image=image)
-            pixels, report.plate, pyramids = found.pixels, found.info, found.pyramids
-        else:
-            report.plate = (
-                f"{pixels.shape[1]}x{pixels.shape[0]} pixels given for plate '{image.name}'"
-            )
+    pixels, pyramids = _plate_pixels(scene, image, pixels, report)
     save_dir = maps.save_folder(settings)
     view = pipeline.view(scene, pixels.shape, depsgraph)
     report.warnings += view.warnings(settings)
     probe = pipeline.scene_probe(scene, view, report)
     yield Step("Measuring the objects", 0.05)
+    boxes, requests = _requests(view, scene, depsgraph, objects, image, report)
+    if probe is not None and requests:
+        warning = world_probe.exposure_warning(probe, pixels, requests[0].params)
+        if warning:
+            report.warnings.append(warning)
+    envs = yield from _map_steps(requests, pixels, pyramids, probe, report)
+    yield Step("Writing the maps", 0.95)
+    if settings.combine == "WORLD":
+        if requests:
+            _attach_world(boxes, envs[0], save_dir, settings, report)
+    else:
+        for request, env in zip(requests, envs, strict=True):
+            _attach(request, env, save_dir, settings, report)
+    remove_orphans()
+    return report
+
+
+def _plate_pixels(scene, image, pixels, report):
+    """(the plate's pixels, their pyramids): the frame of the plate ``image`` read (its
+    pyramids shared by every object's map), or the ``pixels`` given (no pyramids yet)."""
+    with report.timed("plate"):
+        if pixels is not None:
+            report.plate = (
+                f"{pixels.shape[1]}x{pixels.shape[0]} pixels given for plate '{image.name}'"
+            )
+            return pixels, {}
+        found = plate.frame(scene, image=image)
+        report.plate = found.info
+        return found.pixels, found.pyramids
+
+
+def _requests(view, scene, depsgraph, objects, image, report):
+    """({object: box} of the objects in view, the maps to build as pipeline.ReflectRequests):
+    in the World look one shared, camera-aligned map of the union of their boxes, else one
+    map per object (a linked object is named in the warnings and left out)."""
+    settings = scene.virtual_reflections
     boxes, extents, problems = pipeline.object_boxes(view, scene, depsgraph, objects)
     report.warnings += problems
     widths = {obj: map_width(settings.resolution, extents[obj]) for obj in boxes}
-
-    # The maps to build: one shared world map, or one per object.
-    jobs = []  # (name for the warnings, object or None, box, Params, width, roughness)
-    if settings.combine == "WORLD" and boxes:
-        # One shared, camera-aligned world map from the union of the objects' bounds.
-        shared = pipeline.map_params(view, scene, depsgraph, list(boxes))
-        jobs.append(("World", None, union_box(boxes.values()), shared, max(widths.values()), 0))
-    for obj, box in boxes.items() if not jobs else ():
+    if settings.combine == "WORLD":
+        if not boxes:
+            return boxes, []
+        shared = pipeline.reflect_request(
+            view, scene, depsgraph, list(boxes), union_box(boxes.values()), max(widths.values())
+        )
+        return boxes, [shared]
+    requests = []
+    for obj, box in boxes.items():
         if obj.library is not None:  # linked; a library override (local) is generated
             report.warnings.append(shading.linked_object(obj))
             continue
-        own = pipeline.map_params(view, scene, depsgraph, [obj])
-        rough = pipeline.map_roughness(scene, [obj])
-        jobs.append((obj.name, obj, box, own, widths[obj], rough))
-    if probe is not None and jobs:
-        warning = world_probe.exposure_warning(probe, pixels, jobs[0][3])
-        if warning:
-            report.warnings.append(warning)
-    envs = []
-    for i, (name, _, box, params, width, rough) in enumerate(jobs):
-        share = 0.1 + 0.85 * i / len(jobs)
-        table = yield Step(
-            f"Building the table ({name})",
-            share,
-            functools.partial(pipeline.map_table, pixels.shape, box, params, width, report, name),
-        )
-        envs.append(
-            (
-                yield Step(
-                    f"Gathering ({name})",
-                    share + 0.6 * 0.85 / len(jobs),
-                    functools.partial(
-                        pipeline.gather, table, pixels, report, rough, pyramids, probe
-                    ),
-                )
+        requests.append(
+            pipeline.reflect_request(
+                view, scene, depsgraph, [obj], box, widths[obj], obj=obj, image=image
             )
         )
-    yield Step("Writing the maps", 0.95)
+    return boxes, requests
 
-    if settings.combine == "WORLD" and jobs:
-        with report.timed("image"):
-            world_map = _store(maps.WORLD_MAP, envs[0], save_dir, report)
-        with report.timed("wiring"):
-            for obj in boxes:
-                try:
-                    shading.attach(obj, world_map, "WORLD", settings.strength, settings.ior)
-                except ValueError as exc:
-                    report.warnings.append(str(exc))
-                    continue
-                obj.virtual_reflections.bounds = boxes[obj]
-                report.done.append(obj.name)
-        remove_orphans()
-        return report
 
-    for (_, obj, box, _, _, _), env in zip(jobs, envs, strict=True):
-        with report.timed("image"):
-            image_map = _store(maps.map_name(obj.name), env, save_dir, report)
-        with report.timed("wiring"):
-            ground = pipeline.ground_lookup(view, scene, depsgraph, [obj], image)
-            shift = pipeline.lobe_shift(scene, [obj])
+def _map_steps(requests, pixels, pyramids, probe, report):
+    """Each request's lookup table, then its gather, as steps (the engine's work, which the
+    operator runs in a thread); returns their maps in the requests' order."""
+    envs = []
+    for i, request in enumerate(requests):
+        share = 0.1 + 0.85 * i / len(requests)
+        table = yield Step(
+            f"Building the table ({request.name})",
+            share,
+            functools.partial(
+                pipeline.map_table,
+                pixels.shape,
+                request.box,
+                request.params,
+                request.width,
+                report,
+                request.name,
+            ),
+        )
+        gather = functools.partial(
+            pipeline.gather, table, pixels, report, request.roughness, pyramids, probe
+        )
+        envs.append(
+            (yield Step(f"Gathering ({request.name})", share + 0.6 * 0.85 / len(requests), gather))
+        )
+    return envs
+
+
+def _attach_world(boxes, env, save_dir, settings, report):
+    """The World look: the one map stored and every object in ``boxes`` reflecting it."""
+    with report.timed("image"):
+        world_map = _store(maps.WORLD_MAP, env, save_dir, report)
+    with report.timed("wiring"):
+        for obj, box in boxes.items():
             try:
-                shading.attach(
-                    obj,
-                    image_map,
-                    settings.combine,
-                    settings.strength,
-                    settings.ior,
-                    ground=ground,
-                    shift=shift,
-                )
-            except ValueError as exc:  # raised before anything changed (e.g. linked materials)
+                shading.attach(obj, world_map, "WORLD", settings.strength, settings.ior)
+            except ValueError as exc:
                 report.warnings.append(str(exc))
-                if not shading.is_attached(obj):
-                    bpy.data.images.remove(image_map)
                 continue
-        obj.virtual_reflections.bounds = box
-        report.done.append(obj.name)
-    remove_orphans()
-    return report
+            obj.virtual_reflections.bounds = box
+            report.done.append(obj.name)
+
+
+def _attach(request, env, save_dir, settings, report):
+    """One object's map stored and its materials reading it (the request's ground and lobe)."""
+    obj = request.obj
+    with report.timed("image"):
+        image_map = _store(maps.map_name(obj.name), env, save_dir, report)
+    with report.timed("wiring"):
+        try:
+            shading.attach(
+                obj,
+                image_map,
+                settings.combine,
+                settings.strength,
+                settings.ior,
+                ground=request.ground,
+                shift=request.shift,
+            )
+        except ValueError as exc:  # raised before anything changed (e.g. linked materials)
+            report.warnings.append(str(exc))
+            if not shading.is_attached(obj):
+                bpy.data.images.remove(image_map)
+            return
+    obj.virtual_reflections.bounds = request.box
+    report.done.append(obj.name)
 
 
 def _store(name, env, save_dir, report):

@@ -265,7 +265,9 @@ def _rebuild(scene, depsgraph, names, full, report):
             continue  # off screen: keep the map it had
         rounded = tuple(float(round(v)) for v in union_box(boxes.values()))
         full_width = map_width(settings.resolution, max(extents.values()))
-        own = pipeline.map_params(view, scene, depsgraph, list(boxes))
+        own = pipeline.reflect_request(
+            view, scene, depsgraph, list(boxes), rounded, full_width
+        ).params
         base = (id(pixels), rounded, own, None if probe is None else probe.key)
         built = _state.built.get(map_image.name)
         if built is not None and built[0] == base and (not full or built[1] == full_width):
@@ -279,7 +281,7 @@ def _rebuild(scene, depsgraph, names, full, report):
                 shaped = replace(shaped, intrinsics=tuple(v / 2**level for v in shaped.intrinsics))
         world = shading.mode_of(objs[0]) == "WORLD"
         name = ("World" if world else objs[0].name) if full else None
-        rough = pipeline.map_roughness(scene, objs) if full else 0.0  # sharp while moving
+        rough = pipeline.map_roughness(settings, objs) if full else 0.0  # sharp while moving
         env, _ = pipeline.build_map(source, box, shaped, width, report, name, rough, probe=probe)
         with report.timed("image"):
             for obj, b in boxes.items():

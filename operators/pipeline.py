@@ -190,6 +190,55 @@ def camera_sky(scene) -> float | None:
     return sky_in_view(intrinsics, projection.width, projection.height, up)
 
 
+@dataclass(frozen=True)
+class ReflectRequest:
+    """One map to build and where it goes, decided once per run (`reflect_request`).
+
+    name: the map's label in the steps and the warnings ("World" or the object's name);
+    obj: the object the map is for, None for the World look's one map of every object;
+    box: the objects' box in plate pixels (their union); width: the lat-long map's width;
+    roughness: the roughness the map is pre-filtered for (`map_roughness`, 0: sharp);
+    params: the engine's Params of the map (`map_params`); ground: what the material needs to
+    read the ground per shading point (`ground_lookup`, None: it does not);
+    shift: where it reads the pre-filtered map (`lobe_shift`, None: the mirror direction).
+    """
+
+    name: str
+    obj: object | None
+    box: tuple
+    width: int
+    roughness: float
+    params: Params
+    ground: GroundLookup | None = None
+    shift: tuple | None = None
+
+
+def reflect_request(
+    view, scene, depsgraph, objects, box, width, *, obj=None, image=None, centre=None
+) -> ReflectRequest:
+    """The ReflectRequest of the map ``objects`` share (``obj``: the one object it is for),
+    of ``box`` (plate pixels) and ``width``: their roughness taken and the floor under them
+    searched once, here, for the Params, the per-point ground on the plate ``image`` (when
+    given) and the lobe's shift. ``centre``: their centre smoothed over frames (Update Every
+    Frame), else the centre of their bounding box."""
+    settings = scene.virtual_reflections
+    roughness = map_roughness(settings, objects)
+    found = _floor(view, scene, depsgraph, objects, centre)
+    ground = None
+    if image is not None and per_point_ground(settings, roughness):
+        ground = ground_lookup(view, scene, image, found)
+    return ReflectRequest(
+        name="World" if obj is None else obj.name,
+        obj=obj,
+        box=box,
+        width=width,
+        roughness=roughness,
+        params=map_params(view, settings, depsgraph, objects, found, roughness),
+        ground=ground,
+        shift=lobe_shift(roughness),
+    )
+
+
 def _floor(view, scene, depsgraph, objects, centre=None):
     """(the ground's world height, the objects' world centre) when Camera View + Ground applies
     to ``objects``, else None: another method, no perspective camera, the centre not above
@@ -206,61 +255,56 @@ def _floor(view, scene, depsgraph, objects, centre=None):
     return floor, centre
 
 
-def map_roughness(scene, objects) -> float:
+def map_roughness(settings, objects) -> float:
     """The roughness the map of ``objects`` is pre-filtered for: in the Mix look (Glossy: the
     map over the material's own surface) the roughest object's surface (shading.roughness);
     0 in the others: Replace and Modulate are the paper's mirror modes (chrome, car paint),
     and in the World look the renderer's own BSDF blurs the world."""
-    if scene.virtual_reflections.combine != "MIX":
+    if settings.combine != "MIX":
         return 0.0
     return max((shading.roughness(o) for o in objects), default=0.0)
 
 
-def sky_roughness(scene, objects) -> float:
+def sky_roughness(settings, objects, roughness) -> float:
     """The roughness whose view of the unseen sky the map of ``objects`` holds
-    (params.sky_gain_for): in the Mix look the roughness it is pre-filtered for
+    (params.sky_gain_for): in the Mix look the ``roughness`` it is pre-filtered for
     (`map_roughness`); in the World look the smoothest object's surface — the renderer's own
     BSDF blurs the world, and a rough surface's lobe gathers a light's energy that a mirror
     rarely meets, so a world for rough surfaces only holds the brighter sky they see (a mirror
     among them keeps the mirror's); 0 in Replace and Modulate, the mirror modes."""
-    combine = scene.virtual_reflections.combine
-    if combine == "WORLD":
+    if settings.combine == "WORLD":
         return min((shading.roughness(o) for o in objects), default=0.0)
-    return map_roughness(scene, objects)
+    return roughness
 
 
-def lobe_shift(scene, objects) -> tuple | None:
-    """Where the material of ``objects`` reads a map pre-filtered for their roughness: the
-    lobe's centre, ggx_lobe.dominant_shift of `map_roughness` (None: the mirror direction,
-    for a map that is not pre-filtered)."""
-    roughness = map_roughness(scene, objects)
+def lobe_shift(roughness) -> tuple | None:
+    """Where a material reads a map pre-filtered for ``roughness`` (`map_roughness`): the
+    lobe's centre, ggx_lobe.dominant_shift (None: the mirror direction, for a map that is not
+    pre-filtered)."""
     return dominant_shift(round(roughness, 4)) if roughness > SHARP else None
 
 
-def per_point_ground(scene, objects) -> bool:
-    """Whether the materials of ``objects`` read the ground per shading point: the Replace,
-    Modulate and Mix looks of sharp surfaces (a rough one's map holds the ground seen from its
-    centre, blurred by `map_roughness`, where a sharp lookup per point would not be)."""
-    combine = scene.virtual_reflections.combine
-    return combine in SHADED_GROUND and map_roughness(scene, objects) < SHARP_GROUND
+def per_point_ground(settings, roughness) -> bool:
+    """Whether the materials read the ground per shading point: the Replace, Modulate and Mix
+    looks of sharp surfaces (a rough one's map holds the ground seen from its centre, blurred
+    by its ``roughness``, where a sharp lookup per point would not be)."""
+    return settings.combine in SHADED_GROUND and roughness < SHARP_GROUND
 
 
-def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
-    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground the
-    world's horizon and (in the World look) the ground plane seen from the centre of their
-    bounding box (engine ground.py), or from ``centre`` (world space; Update Every Frame passes
-    the centre smoothed over frames). In the Replace, Modulate and Mix looks the material reads
-    the ground per shading point (`ground_lookup`), so their map is the camera view with the
-    world's horizon, one table for every pose. Falls back to the view's (the distant camera
-    view) when the ground does not apply (`_floor`)."""
-    found = _floor(view, scene, depsgraph, objects, centre)
+def map_params(view, settings, depsgraph, objects, found, roughness) -> Params:
+    """The Params of the map ``objects`` share: the view's, and with Camera View + Ground
+    (``found``: `_floor`'s ground height and centre) the world's horizon and (in the World
+    look) the ground plane seen from their centre (engine ground.py). In the Replace, Modulate
+    and Mix looks the material reads the ground per shading point (`ground_lookup`), so their
+    map is the camera view with the world's horizon, one table for every pose. The view's (the
+    distant camera view) when the ground does not apply (``found`` None)."""
     if found is None:
         return view.params
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
     # A rough surface sees a brighter sky (`sky_roughness`).
-    gain = scene_sky_gain(scene.virtual_reflections, sky_roughness(scene, objects))
-    if per_point_ground(scene, objects):
+    gain = scene_sky_gain(settings, sky_roughness(settings, objects, roughness))
+    if per_point_ground(settings, roughness):
         return dataclasses.replace(view.params, up=up, sky_gain=gain)
     origin = bounds.to_engine_frame(view.projection, point=centre)
     # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
@@ -271,19 +315,17 @@ def map_params(view, scene, depsgraph, objects, centre=None) -> Params:
     height = float(centre[2]) - floor
     radius = min(0.5 * float(high[2] - low[2]), height)  # their contact shadow's sphere
     ground = tuple(round(v / step) * step for v in (*origin, height, radius))
-    shadow = contact_shadow(scene.virtual_reflections)
+    shadow = contact_shadow(settings)
     return dataclasses.replace(
         view.params, method="ground", ground=(*ground, shadow), up=up, sky_gain=gain
     )
 
 
-def ground_lookup(view, scene, depsgraph, objects, image) -> GroundLookup | None:
-    """What a Replace, Modulate or Mix material of ``objects`` needs to read the ground the
-    objects stand on from the plate ``image`` per shading point (ground_nodes.py), or None
-    when Camera View + Ground does not apply (another method or look, `_floor`)."""
-    if not per_point_ground(scene, objects):
-        return None
-    found = _floor(view, scene, depsgraph, objects)
+def ground_lookup(view, scene, image, found) -> GroundLookup | None:
+    """What a Replace, Modulate or Mix material needs to read the ground its objects stand on
+    (``found``: `_floor`'s ground height and centre) from the plate ``image`` per shading
+    point (ground_nodes.py), or None when Camera View + Ground does not apply (``found``
+    None)."""
     if found is None:
         return None
     fx, fy, cx, cy = view.params.intrinsics

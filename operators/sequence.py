@@ -191,7 +191,8 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
             result.raw[image.name], result.boxes[image.name] = raw, held
         width = _width(settings, image)
         centre = _smoothed_centre(filters, key, depsgraph, objs, frame, settings, step)
-        shaped = pipeline.map_params(view, scene, depsgraph, objs, centre)
+        request = pipeline.reflect_request(view, scene, depsgraph, objs, held, width, centre=centre)
+        shaped = request.params
         built_from = (
             current.identity,
             held,
@@ -203,9 +204,8 @@ def update(scene, depsgraph, *, filters=None, frame=None, step=1, plate_frame=No
         if _written.get(image.name) == built_from and tuple(image.size) == (width, width // 2):
             result.unchanged.append(image.name)
             continue
-        rough = pipeline.map_roughness(scene, objs)
         env, _ = pipeline.build_map(
-            current.pixels, held, shaped, width, result, roughness=rough, probe=probe
+            current.pixels, held, shaped, width, result, roughness=request.roughness, probe=probe
         )
         with result.timed("image"):
             _write_map(image, env)

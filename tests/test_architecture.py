@@ -50,6 +50,12 @@ And one on the engine's public surface:
     (`from virtual_reflections.imagefiles import read_rgba`, also by name in
     `import_module`); the engine's other modules are its own. What it imports from a listed
     module carries a numpydoc docstring, as rule 6's (issue 43, item 4).
+
+And one on the Blender layer's rooms (issue 43, item 4):
+12. `operators/` imports one way between its rooms: `scene/` (the scene's data) imports no
+    other room of it, `node_trees/` only `scene/`, the modules at the top of `operators/` (the
+    map pipeline and the features) only those two, and `batch/` and `ops.py` (the two entries)
+    anything but each other; a room's `__init__.py` imports nothing of the add-on.
 """
 
 from __future__ import annotations
@@ -1104,3 +1110,87 @@ def test_the_rule_11_sees_every_way_in(tmp_path):
         f"study/b.py:3 {ENGINE}.m",
     ]
     assert docstring_problems(engine_defs_used_outside(root)) == ["pub.h: no docstring"]
+
+
+# --- rule 12: the rooms of operators/ import one way ------------------------------------------
+
+# Each room of the Blender layer and its floor: a module imports only its own room and the
+# rooms on lower floors ("operators" is the top of operators/: the pipeline and the features).
+ROOMS = {
+    "operators.scene": 0,
+    "operators.node_trees": 1,
+    "operators": 2,
+    "operators.batch": 3,
+    "operators.ops": 3,
+}
+
+
+def room_of(name: str) -> str | None:
+    """The room of a module of operators/ (its longest prefix in ROOMS), None outside it."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        if ".".join(parts[:i]) in ROOMS:
+            return ".".join(parts[:i])
+    return None
+
+
+def room_imports(root: Path) -> list[str]:
+    """`file:line imports file` for each import between the rooms of operators/ that runs
+    sideways or up (rule 12), and for each import by a room's __init__.py."""
+    modules = discover(root)
+    imports = all_imports(modules, root)
+    problems = set()
+    for name, found in imports.items():
+        here = room_of(name)
+        if here is None:
+            continue
+        for imp in found:
+            target = known_module(imp.target, modules) if imp.internal else None
+            there = room_of(target) if target is not None else None
+            if there is None or target == name:
+                continue
+            if name in ROOMS and name != "operators.ops" and name != "operators":
+                why = "a room's __init__.py imports nothing"
+            elif there == here or ROOMS[there] < ROOMS[here]:
+                continue
+            else:
+                why = "sideways or up between the rooms of operators/"
+            where, shown = display(name, modules, root), display(target, modules, root)
+            problems.add((where, imp.line, f"{where}:{imp.line} imports {shown} ({why})"))
+    return [message for *_, message in sorted(problems)]
+
+
+def test_the_rooms_of_operators_import_one_way():
+    problems = room_imports(REPO)
+    assert not problems, _report("imports against the rooms of operators/", problems)
+
+
+def test_the_rule_12_sees_imports_up_and_sideways(tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "operators/__init__.py": "",
+            "operators/scene/__init__.py": "from . import plate\n",
+            "operators/scene/plate.py": "from ..node_trees import shading\n",
+            "operators/node_trees/__init__.py": "",
+            "operators/node_trees/shading.py": "from ..scene import plate\n"
+            "def f():\n    from .. import generate\n",
+            "operators/generate.py": "from .scene import plate\nfrom .node_trees import shading\n"
+            "from .batch import shot\n",
+            "operators/batch/__init__.py": "",
+            "operators/batch/shot.py": "from .. import generate, ops\n",
+            "operators/ops.py": "from . import generate\n",
+        },
+    )
+    assert room_imports(root) == [
+        "operators/batch/shot.py:1 imports operators/ops.py "
+        "(sideways or up between the rooms of operators/)",
+        "operators/generate.py:3 imports operators/batch/shot.py "
+        "(sideways or up between the rooms of operators/)",
+        "operators/node_trees/shading.py:3 imports operators/generate.py "
+        "(sideways or up between the rooms of operators/)",
+        "operators/scene/__init__.py:1 imports operators/scene/plate.py "
+        "(a room's __init__.py imports nothing)",
+        "operators/scene/plate.py:1 imports operators/node_trees/shading.py "
+        "(sideways or up between the rooms of operators/)",
+    ]

@@ -266,7 +266,8 @@ def test_the_replace_map_is_the_same_for_every_pose(addon):
     def params():
         depsgraph = bpy.context.evaluated_depsgraph_get()
         view = pipeline.view(scene, plate.pixels(scene)[0].shape, depsgraph)
-        return pipeline.map_params(view, scene, depsgraph, [ball])
+        box = (0.0, 0.0, 1.0, 1.0)  # the Params do not depend on it
+        return pipeline.reflect_request(view, scene, depsgraph, [ball], box, 256).params
 
     for combine, moves in (("REPLACE", False), ("WORLD", True)):
         scene.virtual_reflections.combine = combine
