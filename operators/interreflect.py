@@ -161,8 +161,78 @@ def pass_steps(
     files; what pass 1 (Generate) and later passes changed in the maps stays: the caller
     restores that (`reflection_snapshot`).
     """
-    settings = scene.virtual_reflections
     limit = _pass_limit(passes, r_max)
+    plate = _checked_plate(scene, pixels)
+    check_combine(scene.virtual_reflections.combine, passes, r_max)
+    layer = depsgraph.view_layer
+    with tempfile.TemporaryDirectory(prefix="vr-passes-") as folder:
+        run = _Run(scene, depsgraph, layer, os.path.join(folder, "pass.exr"), passes, limit, plate)
+        # Pass 1: Generate, then one full render.
+        started = time.perf_counter()
+        generated = yield from generate.within(
+            generate.steps(scene, depsgraph, objects), 0.0, 0.6 / limit, run.label(1)
+        )
+        maps_seconds = time.perf_counter() - started
+        by_name = {obj.name: obj for obj in objects}
+        done = [by_name[name] for name in generated.done]
+        if not done:
+            raise ValueError("no reflection generated: " + "; ".join(generated.warnings))
+        with _render_state(scene, layer, run.path, done) as ids:
+            first = yield from _first_render(run, ids, done, generated, started, maps_seconds)
+            reports = [first.report]
+            if limit == 1:
+                return first.composite, first.rgba, reports
+            size = first.rgba.shape[:2]
+            border = _border(done, first.coverage, plate.shape, size)
+            _set_border(scene.render, border, size)
+            if neighbours and self_mask and traced_pass.applies(scene, done):
+                composite, report = yield from _traced_second_pass(run, done, first, border)
+                return composite, first.rgba, [*reports, report]
+            composite = yield from _later_passes(
+                run, done, first, border, reports, tolerance, self_mask, neighbours
+            )
+    return composite, first.rgba, reports
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What every pass of one run shares: the scene and the view layer rendered, the render's
+    file, ``passes`` as asked, their ``limit`` and the plate ((H, W, 3) float32)."""
+
+    scene: object
+    depsgraph: object
+    layer: object
+    path: str
+    passes: object
+    limit: int
+    plate: np.ndarray
+
+    def label(self, k):
+        """The steps' label of pass ``k``."""
+        if self.passes != "auto":
+            return f"Pass {k} of {self.limit}: "
+        return f"Pass {k} (at most {self.limit}): "
+
+
+@dataclass(frozen=True)
+class _FirstPass:
+    """Pass 1's render and what later passes read of it: ``rgba`` (h, w, 4) (later passes
+    paste their region into it), its ``composite`` over ``plate_small`` (the plate at the
+    render's size), each object's index mask grown (``own``) and shrunk (``core``), their
+    union (``coverage``) and the pass's report."""
+
+    rgba: np.ndarray
+    composite: np.ndarray
+    plate_small: np.ndarray
+    own: dict
+    core: dict
+    coverage: np.ndarray
+    report: PassReport
+
+
+def _checked_plate(scene, pixels):
+    """``pixels`` as float32, checked to be the scene's plate ((H, W, 3) of its size);
+    ValueError (one line) without a plate or with other pixels."""
     plate = np.asarray(pixels, dtype=np.float32)
     image = scene_plate(scene)
     if image is None:
@@ -172,118 +242,111 @@ def pass_steps(
             f"the plate must be the scene's plate pixels ({image.size[0]}x{image.size[1]}x3), "
             f"got shape {plate.shape}"
         )
-    check_combine(settings.combine, passes, r_max)
-    layer = depsgraph.view_layer
-    reports = []
+    return plate
 
-    def label(k):
-        return f"Pass {k} of {limit}: " if passes != "auto" else f"Pass {k} (at most {limit}): "
 
-    with tempfile.TemporaryDirectory(prefix="vr-passes-") as folder:
-        path = os.path.join(folder, "pass.exr")
-        # Pass 1: Generate, then one full render.
+def _first_render(run, ids, done, generated, started, maps_seconds):
+    """Pass 1's render step (``ids``: {object: pass index}); returns its `_FirstPass`."""
+    rendered = time.perf_counter()
+    yield generate.Step(
+        run.label(1) + "rendering", 0.6 / run.limit, render=(run.scene.name, run.layer.name)
+    )
+    rgba, index = _read_render(run.scene, run.layer, run.path)
+    render_seconds = time.perf_counter() - rendered
+    h, w = rgba.shape[:2]
+    plate_small = resize_nearest(run.plate, h, w)
+    composite = over(rgba, plate_small)
+    own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
+    # ... and shrunk, for reading a neighbour: its edge pixels are mixed with the plate
+    core = {obj: ~_grow(index != i, MASK_GROW) for obj, i in ids.items()}
+    coverage = np.logical_or.reduce(list(own.values()))
+    notes = _method_note(run.scene.virtual_reflections, run.limit, len(done))
+    report = PassReport(
+        1,
+        time.perf_counter() - started,
+        _change(composite, plate_small, coverage),
+        None,
+        maps_seconds,
+        render_seconds,
+        tuple(generated.warnings) + notes,
+    )
+    return _FirstPass(rgba, composite, plate_small, own, core, coverage, report)
+
+
+def _traced_second_pass(run, done, first, border):
+    """Camera View + Ground under Cycles: pass 2 ray traces every level at once (in the
+    region ``border``); returns (its composite, its report)."""
+    started = time.perf_counter()
+    with traced_pass.traced(run.scene, done):
+        render_seconds = yield from _render_region(
+            run.scene, run.layer, run.path, run.label(2) + "rendering (ray traced)",
+            1.6 / run.limit, first.rgba, border,
+        )  # fmt: skip
+    composite = over(first.rgba, first.plate_small)
+    note = (TRACED_NOTE,) if run.limit > 2 and run.passes != "auto" else ()
+    change = _change(composite, first.composite, first.coverage)
+    seconds = time.perf_counter() - started
+    return composite, PassReport(2, seconds, change, border, 0.0, render_seconds, note)
+
+
+def _later_passes(run, done, first, border, reports, tolerance, self_mask, neighbours):
+    """Passes 2 to the limit (with "auto", until one changes less than ``tolerance``): each
+    object's map built again from the previous composite with its own pixels the plate's (and
+    its neighbours placed), then the region ``border`` rendered again. Appends each pass's
+    report to ``reports``; returns the last composite."""
+    plate, rgba, composite = run.plate, first.rgba, first.composite
+    h, w = rgba.shape[:2]
+    x0, y0, x1, y1 = border
+    # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
+    # render pixels `sub` (nearest).
+    ys, xs = nearest_rows(h, plate.shape[0]), nearest_rows(w, plate.shape[1])
+    (Y0, Y1), (X0, X1) = np.searchsorted(ys, (y0, y1)), np.searchsorted(xs, (x0, x1))
+    sub = np.ix_(ys[Y0:Y1], xs[X0:X1])
+    own_sub = {obj: mask[sub] for obj, mask in first.own.items()}
+    # The composite at the plate's size; outside the region it stays pass 1's.
+    source = over(rgba[np.ix_(ys, xs)], plate)
+    inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
+    for k in range(2, run.limit + 1):
         started = time.perf_counter()
-        generated = yield from generate.within(
-            generate.steps(scene, depsgraph, objects), 0.0, 0.6 / limit, label(1)
-        )
+        # The previous composite is the new plate ...
+        inside[...] = over(rgba[sub], plate_inside)
+        for n, obj in enumerate(done):
+            # ... except where the object itself is: there it sees the original plate.
+            # Generate builds the map exactly as in pass 1 (same bounds, size and
+            # settings: the engine's cached table) and stores it in place.
+            mine = own_sub[obj] if self_mask else np.zeros(inside.shape[:2], bool)
+            kept = inside[mine]
+            inside[mine] = plate_inside[mine]
+            share = (k - 1 + 0.6 * n / len(done)) / run.limit
+            yield from generate.within(
+                generate.steps(run.scene, run.depsgraph, [obj], pixels=source),
+                share,
+                share + 0.6 / len(done) / run.limit,
+                run.label(k),
+            )
+            if neighbours:
+                others = {o: first.core[o] for o in done if o is not obj}
+                _place_neighbours(run.scene, run.depsgraph, obj, others, source)
+            inside[mine] = kept
         maps_seconds = time.perf_counter() - started
-        by_name = {obj.name: obj for obj in objects}
-        done = [by_name[name] for name in generated.done]
-        if not done:
-            raise ValueError("no reflection generated: " + "; ".join(generated.warnings))
-        with _render_state(scene, layer, path, done) as ids:
-            rendered = time.perf_counter()
-            yield generate.Step(
-                label(1) + "rendering", 0.6 / limit, render=(scene.name, layer.name)
+        render_seconds = yield from _render_region(
+            run.scene, run.layer, run.path, run.label(k) + "rendering", (k - 0.4) / run.limit,
+            rgba, border,
+        )  # fmt: skip
+        previous, composite = composite, over(rgba, first.plate_small)
+        reports.append(
+            PassReport(
+                k,
+                time.perf_counter() - started,
+                _change(composite, previous, first.coverage),
+                border,
+                maps_seconds,
+                render_seconds,
             )
-            rgba, index = _read_render(scene, layer, path)
-            render_seconds = time.perf_counter() - rendered
-            h, w = rgba.shape[:2]
-            plate_small = resize_nearest(plate, h, w)
-            composite = over(rgba, plate_small)
-            own = {obj: _grow(index == i, MASK_GROW) for obj, i in ids.items()}
-            # ... and shrunk, for reading a neighbour: its edge pixels are mixed with the plate
-            core = {obj: ~_grow(index != i, MASK_GROW) for obj, i in ids.items()}
-            coverage = np.logical_or.reduce(list(own.values()))
-            reports.append(
-                PassReport(
-                    1,
-                    time.perf_counter() - started,
-                    _change(composite, plate_small, coverage),
-                    None,
-                    maps_seconds,
-                    render_seconds,
-                    tuple(generated.warnings) + _method_note(settings, limit, len(done)),
-                )
-            )
-            if limit == 1:
-                return composite, rgba, reports
-
-            x0, y0, x1, y1 = border = _border(done, coverage, plate.shape, (h, w))
-            _set_border(scene.render, border, (h, w))
-            if neighbours and self_mask and traced_pass.applies(scene, done):
-                # Camera View + Ground under Cycles: pass 2 ray traces every level at once
-                started = time.perf_counter()
-                with traced_pass.traced(scene, done):
-                    render_seconds = yield from _render_region(
-                        scene, layer, path, label(2) + "rendering (ray traced)", 1.6 / limit,
-                        rgba, border,
-                    )  # fmt: skip
-                previous, composite = composite, over(rgba, plate_small)
-                note = (TRACED_NOTE,) if limit > 2 and passes != "auto" else ()
-                change = _change(composite, previous, coverage)
-                seconds = time.perf_counter() - started
-                reports.append(PassReport(2, seconds, change, border, 0.0, render_seconds, note))
-                return composite, rgba, reports
-            # The region at the plate's size: plate rows Y0:Y1 and columns X0:X1 show the
-            # render pixels `sub` (nearest).
-            ys, xs = nearest_rows(h, plate.shape[0]), nearest_rows(w, plate.shape[1])
-            (Y0, Y1), (X0, X1) = np.searchsorted(ys, (y0, y1)), np.searchsorted(xs, (x0, x1))
-            sub = np.ix_(ys[Y0:Y1], xs[X0:X1])
-            own_sub = {obj: mask[sub] for obj, mask in own.items()}
-            # The composite at the plate's size; outside the region it stays pass 1's.
-            source = over(rgba[np.ix_(ys, xs)], plate)
-            inside, plate_inside = source[Y0:Y1, X0:X1], plate[Y0:Y1, X0:X1]
-            for k in range(2, limit + 1):
-                started = time.perf_counter()
-                # The previous composite is the new plate ...
-                inside[...] = over(rgba[sub], plate_inside)
-                for n, obj in enumerate(done):
-                    # ... except where the object itself is: there it sees the original plate.
-                    # Generate builds the map exactly as in pass 1 (same bounds, size and
-                    # settings: the engine's cached table) and stores it in place.
-                    mine = own_sub[obj] if self_mask else np.zeros(inside.shape[:2], bool)
-                    kept = inside[mine]
-                    inside[mine] = plate_inside[mine]
-                    share = (k - 1 + 0.6 * n / len(done)) / limit
-                    yield from generate.within(
-                        generate.steps(scene, depsgraph, [obj], pixels=source),
-                        share,
-                        share + 0.6 / len(done) / limit,
-                        label(k),
-                    )
-                    if neighbours:
-                        others = {o: core[o] for o in done if o is not obj}
-                        _place_neighbours(scene, depsgraph, obj, others, source)
-                    inside[mine] = kept
-                maps_seconds = time.perf_counter() - started
-                render_seconds = yield from _render_region(
-                    scene, layer, path, label(k) + "rendering", (k - 0.4) / limit, rgba, border
-                )
-                previous, composite = composite, over(rgba, plate_small)
-                reports.append(
-                    PassReport(
-                        k,
-                        time.perf_counter() - started,
-                        _change(composite, previous, coverage),
-                        border,
-                        maps_seconds,
-                        render_seconds,
-                    )
-                )
-                if passes == "auto" and reports[-1].change < tolerance:
-                    break
-    return composite, rgba, reports
+        )
+        if run.passes == "auto" and reports[-1].change < tolerance:
+            break
+    return composite
 
 
 def _render_region(scene, layer, path, stage, share, rgba, border):
@@ -361,14 +424,30 @@ def _place_neighbours(scene, depsgraph, obj, others, source):
     found = projection.intrinsics(*projection.plate_scale(source.shape))
     if found is None:  # orthographic: no single centre of projection to place them from
         return
-    fx, fy, cx, cy = found
     env = images.read_pixels(image)[..., :3].copy()
     h, w = env.shape[:2]
     if w != 2 * h:  # not a lat-long map
         return
+    to_camera = projection.world_to_camera
+    starts, world = _reflected_rays(obj, depsgraph, to_camera, h, w)
+    nearest, which = _first_hits(starts, world, list(others), depsgraph)
+    rows, cols = np.nonzero(which >= 0)
+    if not len(rows):
+        return
+    points = starts[rows, cols] + nearest[rows, cols, None] * world[rows, cols]
+    masks = list(others.values())
+    Y, X, seen = _seen(points, to_camera, found, source.shape[:2], masks, which[rows, cols])
+    env[rows[seen], cols[seen]] = source[Y[seen], X[seen]]
+    maps.store_map(image.name, env, maps.save_folder(scene.virtual_reflections))
+
+
+def _reflected_rays(obj, depsgraph, to_camera, h, w):
+    """(starts, directions), each (h, w, 3) in world space: each texel's direction d of an
+    (h, w) lat-long map, turned to the world by the camera's rotation (``to_camera``: world
+    to camera, 4x4), and the point of ``obj``'s bounding sphere that reflects d toward the
+    camera."""
     lo, hi = bounds.world_box(obj, depsgraph)
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / (2 * np.sqrt(3))
-    to_camera = projection.world_to_camera
     frame = latlong_directions(np.arange(w)[None, :] + 0.5, np.arange(h)[:, None] + 0.5, w)
     # camera frame -> Blender camera-local (x, y, z) = (-x, y, -z) -> world (rotation^T)
     world = (frame * (-1.0, 1.0, -1.0)) @ to_camera[:3, :3]
@@ -376,10 +455,15 @@ def _place_neighbours(scene, depsgraph, obj, others, source):
     back = (eye - centre) / max(float(np.linalg.norm(eye - centre)), 1e-9)
     normal = world + back  # the normal that reflects the view ray into d
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-9)
-    starts = centre + radius * normal  # (h, w, 3)
-    nearest = np.full((h, w), np.inf)
-    which = np.full((h, w), -1)
-    masks = list(others.values())
+    return centre + radius * normal, world
+
+
+def _first_hits(starts, world, others, depsgraph):
+    """(distance, which): along each ray (``starts`` + t ``world``) the nearest of the
+    ``others`` objects it meets (each an ellipsoid filling its own bounding box): t (inf:
+    none) and its index in ``others`` (-1: none)."""
+    nearest = np.full(starts.shape[:2], np.inf)
+    which = np.full(starts.shape[:2], -1)
     for k, other in enumerate(others):
         evaluated = other.evaluated_get(depsgraph)
         box = np.array(evaluated.bound_box, dtype=np.float64)
@@ -398,25 +482,29 @@ def _place_neighbours(scene, depsgraph, obj, others, source):
         # c <= 0: the start inside the other's ellipsoid (overlapping boxes): not placed
         hit = (c > 0.0) & (disc >= 0.0) & (t > 0.0) & (t < nearest)
         nearest[hit], which[hit] = t[hit], k
-    rows, cols = np.nonzero(which >= 0)
-    if not len(rows):
-        return
-    points = starts[rows, cols] + nearest[rows, cols, None] * world[rows, cols]
+    return nearest, which
+
+
+def _seen(points, to_camera, intrinsics, shape, masks, which):
+    """(rows, columns, seen) of world ``points`` in a plate of ``shape`` (H, W) through the
+    camera (``intrinsics``: fx, fy, cx, cy in plate pixels): seen where the point is in front
+    of the camera, in the frame and on the index mask (``masks[which]``, at the render's size)
+    of the object it lies on."""
+    fx, fy, cx, cy = intrinsics
     local = points @ to_camera[:3, :3].T + to_camera[:3, 3]
     depth = -local[:, 2]
-    H, W = source.shape[:2]
+    H, W = shape
     front = depth > 1e-6
     px = np.where(front, cx + fx * local[:, 0] / np.where(front, depth, 1.0), -1.0)
     py = np.where(front, cy - fy * local[:, 1] / np.where(front, depth, 1.0), -1.0)
     inside = front & (px >= 0) & (px < W) & (py >= 0) & (py < H)
     mh, mw = masks[0].shape
     X, Y = np.clip(px, 0, W - 1).astype(int), np.clip(py, 0, H - 1).astype(int)
-    seen = np.zeros(len(rows), bool)
+    seen = np.zeros(len(points), bool)
     for k, mask in enumerate(masks):
-        mine = inside & (which[rows, cols] == k)
+        mine = inside & (which == k)
         seen[mine] = mask[Y[mine] * mh // H, X[mine] * mw // W]
-    env[rows[seen], cols[seen]] = source[Y[seen], X[seen]]
-    maps.store_map(image.name, env, maps.save_folder(scene.virtual_reflections))
+    return Y, X, seen
 
 
 # --- the render and its files -------------------------------------------------------------------

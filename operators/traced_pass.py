@@ -281,56 +281,10 @@ def traced(scene, objects):
     slots = []  # (slot, material) to put back
     flags = []  # (owner, attribute, value) to put back
     try:
-        material = _dome_material(image, ground, [_world_box(o, centre) for o in objects])
-        made.append(material)
-        mesh = _sphere_mesh(max(MIN_RADIUS, 20.0 * far))
-        made.append(mesh)
-        mesh.materials.append(material)
-        dome = bpy.data.objects.new(DOME, mesh)
-        made.append(dome)
-        dome.location = centre
-        scene.collection.objects.link(dome)
-        for attr in DOME_HIDDEN_FROM:
-            setattr(dome, attr, False)
-        # The ground, as a plane the mirrors' rays meet (seen by glossy rays only): its shading
-        # point is the ground point, where Cycles measures the sky the objects really hide.
-        reach = max(math.sqrt(sum(h * h for h in _world_box(o, centre)[1])) for o in objects)
-        plane_material = _dome_material(
-            image, ground, (), occlusion=AO_REACH * reach, name=GROUND_PLANE
-        )
-        made.append(plane_material)
-        plane_mesh = _plane_mesh(max(MIN_RADIUS, 20.0 * far), ground.height)
-        made.append(plane_mesh)
-        plane_mesh.materials.append(plane_material)
-        plane = bpy.data.objects.new(GROUND_PLANE, plane_mesh)
-        made.append(plane)
-        plane.location = (centre.x, centre.y, 0.0)
-        scene.collection.objects.link(plane)
-        for attr in DOME_HIDDEN_FROM:
-            setattr(plane, attr, False)
-        mirrors = {}  # each material copy of the objects -> its mirror
-        for obj in objects:
-            for slot in obj.material_slots:
-                if slot.material is None:
-                    continue
-                if slot.material.name not in mirrors:
-                    mirrors[slot.material.name] = _mirror_of(slot.material)
-                    made.append(mirrors[slot.material.name])
-                slots.append((slot, slot.material))
-                slot.material = mirrors[slot.material.name]
-        ours = set(objects)
-        for obj in scene.objects:
-            if obj in ours:
-                continue
-            # The ground and shadow catchers would hide the plate's ground from the mirrors
-            # and, standing where the plane is, from its Ambient Occlusion (shadow rays); a
-            # holdout ends every ray that meets it (black): all stand for what the plate shows.
-            ground_like = obj == ground_object or getattr(obj, "is_shadow_catcher", False)
-            if ground_like or holds_out(obj):
-                for attr in ("visible_glossy", "visible_shadow"):
-                    if getattr(obj, attr):
-                        flags.append((obj, attr, True))
-                        setattr(obj, attr, False)
+        dome = _add_dome(scene, image, ground, objects, centre, far, made)
+        _add_ground_plane(scene, image, ground, objects, centre, far, made)
+        _mirror_materials(objects, made, slots)
+        _hide_what_stands_for_the_plate(scene, objects, ground_object, flags)
         cycles = scene.cycles
         for attr in ("glossy_bounces", "max_bounces"):
             value = getattr(cycles, attr)
@@ -350,3 +304,74 @@ def traced(scene, objects):
                 bpy.data.meshes.remove(block)
             else:
                 bpy.data.materials.remove(block)
+
+
+def _add_dome(scene, image, ground, objects, centre, far, made):
+    """The dome about ``centre`` (far beyond the ``far``-thest object corner), linked to the
+    scene and seen by glossy rays only: every ray that meets nothing else reads the default's
+    lookup there. What it makes is appended to ``made``."""
+    material = _dome_material(image, ground, [_world_box(o, centre) for o in objects])
+    made.append(material)
+    mesh = _sphere_mesh(max(MIN_RADIUS, 20.0 * far))
+    made.append(mesh)
+    mesh.materials.append(material)
+    dome = bpy.data.objects.new(DOME, mesh)
+    made.append(dome)
+    dome.location = centre
+    scene.collection.objects.link(dome)
+    for attr in DOME_HIDDEN_FROM:
+        setattr(dome, attr, False)
+    return dome
+
+
+def _add_ground_plane(scene, image, ground, objects, centre, far, made):
+    """The ground, as a plane the mirrors' rays meet (seen by glossy rays only): its shading
+    point is the ground point, where Cycles measures the sky the objects really hide. What it
+    makes is appended to ``made``."""
+    reach = max(math.sqrt(sum(h * h for h in _world_box(o, centre)[1])) for o in objects)
+    plane_material = _dome_material(
+        image, ground, (), occlusion=AO_REACH * reach, name=GROUND_PLANE
+    )
+    made.append(plane_material)
+    plane_mesh = _plane_mesh(max(MIN_RADIUS, 20.0 * far), ground.height)
+    made.append(plane_mesh)
+    plane_mesh.materials.append(plane_material)
+    plane = bpy.data.objects.new(GROUND_PLANE, plane_mesh)
+    made.append(plane)
+    plane.location = (centre.x, centre.y, 0.0)
+    scene.collection.objects.link(plane)
+    for attr in DOME_HIDDEN_FROM:
+        setattr(plane, attr, False)
+
+
+def _mirror_materials(objects, made, slots):
+    """Each material copy of ``objects`` swapped for its mirror (`_mirror_of`, one per copy,
+    appended to ``made``); each (slot, material) to put back appended to ``slots``."""
+    mirrors = {}  # each material copy of the objects -> its mirror
+    for obj in objects:
+        for slot in obj.material_slots:
+            if slot.material is None:
+                continue
+            if slot.material.name not in mirrors:
+                mirrors[slot.material.name] = _mirror_of(slot.material)
+                made.append(mirrors[slot.material.name])
+            slots.append((slot, slot.material))
+            slot.material = mirrors[slot.material.name]
+
+
+def _hide_what_stands_for_the_plate(scene, objects, ground_object, flags):
+    """The scene's ground (``ground_object``), shadow catchers and holdouts hidden from glossy
+    and shadow rays; each (object, attribute, value) to put back appended to ``flags``."""
+    ours = set(objects)
+    for obj in scene.objects:
+        if obj in ours:
+            continue
+        # The ground and shadow catchers would hide the plate's ground from the mirrors
+        # and, standing where the plane is, from its Ambient Occlusion (shadow rays); a
+        # holdout ends every ray that meets it (black): all stand for what the plate shows.
+        ground_like = obj == ground_object or getattr(obj, "is_shadow_catcher", False)
+        if ground_like or holds_out(obj):
+            for attr in ("visible_glossy", "visible_shadow"):
+                if getattr(obj, attr):
+                    flags.append((obj, attr, True))
+                    setattr(obj, attr, False)

@@ -165,8 +165,18 @@ def ensure_reflection_group(mode, image, ground=None, shift=None):
     group["vr_mode"] = mode
     group["vr_ground"] = signature
     group["vr_shift"] = shifted
+    _reflection_sockets(group.interface, mode, ground is not None)
+    nodes, links = group.nodes, group.links
+    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-900, 0))
+    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (600, 0))
+    env = _map_colour(nodes, links, g_in, image, ground, shift)
+    _reflection_shader(nodes, links, g_in, g_out, env, mode)
+    return group
 
-    iface = group.interface
+
+def _reflection_sockets(iface, mode, boxed):
+    """The group's inputs for ``mode`` (and, ``boxed``, the shaded object's bounding box for
+    its contact shadow on the ground) and its Shader output."""
     if mode == "MIX":
         iface.new_socket("Shader", in_out="INPUT", socket_type="NodeSocketShader")
     if mode == "MODULATE":
@@ -177,16 +187,16 @@ def ensure_reflection_group(mode, image, ground=None, shift=None):
     if mode == "MIX":
         ior = iface.new_socket("IOR", in_out="INPUT", socket_type="NodeSocketFloat")
         ior.default_value, ior.min_value, ior.max_value = 1.45, 1.0, 100.0
-    if ground is not None:
+    if boxed:
         # The shaded object's bounding box (its own space): its contact shadow on the ground.
         for name in BOX_INPUTS:
             iface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
     iface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
 
-    nodes, links = group.nodes, group.links
-    g_in = new_node(nodes, "NodeGroupInput", "Group Input", (-900, 0))
-    g_out = new_node(nodes, "NodeGroupOutput", "Group Output", (600, 0))
 
+def _map_colour(nodes, links, g_in, image, ground, shift):
+    """The map's colour along the mirror direction (the lobe's centre with ``shift``), the
+    ground looked up per shading point mixed over it with ``ground``: its output socket."""
     # The mirror direction: the camera ray (-Incoming) reflected about the shading normal.
     geometry, view = view_ray(nodes, links)
     reflect = new_node(nodes, "ShaderNodeVectorMath", "Reflection", (-500, 300))
@@ -201,7 +211,13 @@ def ensure_reflection_group(mode, image, ground=None, shift=None):
         position = geometry.outputs["Position"]
         box = tuple(g_in.outputs[name] for name in BOX_INPUTS)
         env = mix_ground(nodes, links, position, direction, env, ground, (0, 600), (box,))
+    return env
 
+
+def _reflection_shader(nodes, links, g_in, g_out, env, mode):
+    """The shader of ``mode`` from the map's colour ``env``, linked to the group's output:
+    an emission of it (times Base Color in MODULATE) as the whole surface, or in MIX over the
+    material's own shader by Fresnel times Strength."""
     emission = new_node(nodes, "ShaderNodeEmission", "Reflection Emission", (200, 200))
     if mode == "MODULATE":
         # GL_MODULATE (§3.1): material colour times the map.
@@ -231,7 +247,6 @@ def ensure_reflection_group(mode, image, ground=None, shift=None):
         # GL_REPLACE / GL_MODULATE: the reflection is the whole surface.
         links.new(g_in.outputs["Strength"], emission.inputs["Strength"])
         links.new(emission.outputs["Emission"], g_out.inputs["Shader"])
-    return group
 
 
 def _lobe_centre(nodes, links, geometry, mirror, shift):
