@@ -212,6 +212,14 @@ class BatchOptions:
         return cls(**vars(namespace))
 
     def __post_init__(self):
+        self._check_texts()
+        self._check_choices_and_numbers()
+        self._check_name_frame_and_passes()
+        self._check_sky()
+        self._check_switches_and_frames()
+
+    def _check_texts(self):
+        """The paths and names are text (a path-like made text), the objects a list of names."""
         for key in ("plate", "out", "blend", "name", "report"):
             value = getattr(self, key)
             if isinstance(value, os.PathLike):
@@ -224,6 +232,10 @@ class BatchOptions:
             if isinstance(self.objects, str) or not all(isinstance(n, str) for n in self.objects):
                 raise ValueError(f"--objects must be a list of object names, not {self.objects!r}")
             object.__setattr__(self, "objects", tuple(self.objects))
+
+    def _check_choices_and_numbers(self):
+        """Each choice one of its list, each count a whole number >= 0, each ranged setting
+        in its range, the triangles a multiple of 4."""
         for key, choices in (
             ("combine", COMBINES),
             ("method", METHODS),
@@ -258,6 +270,10 @@ class BatchOptions:
             raise ValueError(
                 f"--triangles must be 0 or a multiple of 4 from 4 to {MAX_TRIANGLES}, not {t}"
             )
+
+    def _check_name_frame_and_passes(self):
+        """The report's name a plain file name, the frame a number, the passes a number >= 1
+        or auto, the tolerance a number >= 0."""
         if self.name is not None and (
             not self.name.strip()
             or self.name.startswith(".")
@@ -279,6 +295,10 @@ class BatchOptions:
             if not (_is_number(self.tolerance) and self.tolerance >= 0):
                 raise ValueError(f"--tolerance must be a number >= 0, not {self.tolerance!r}")
             object.__setattr__(self, "tolerance", float(self.tolerance))
+
+    def _check_sky(self):
+        """Each float setting in its range, the sky tint an R,G,B not all 0, and the sky's
+        brightness and tint only with Surroundings Custom (or none)."""
         for key, (low, high) in FLOAT_RANGES.items():
             value = getattr(self, key)
             if value is None:
@@ -307,6 +327,10 @@ class BatchOptions:
                     f"--{key.replace('_', '-')} sets Surroundings Custom: not with "
                     f"--surroundings {self.surroundings}"
                 )
+
+    def _check_switches_and_frames(self):
+        """The switches on or off, --no-reflections with one pass, and --frames a range
+        (not with --frame)."""
         for key in ("no_reflections", "overwrite"):
             if not isinstance(getattr(self, key), bool):
                 raise ValueError(

@@ -359,12 +359,77 @@ def _run_header(scene, options, source, name, out, size, own, use_passes):
 def _render_frames(options, started, source, frames, outputs, report_path):
     """render_frames once the run owns its frames' outputs (OutputLock)."""
     scene = bpy.context.scene
-    settings = scene.virtual_reflections
-    fmt = options.format
     out = os.path.abspath(options.out)
     name = shot_name(options)
+    image, use_passes, own, size, header = _prepare(
+        scene, options, source, frames, outputs, report_path, out, name
+    )
+    previous = read_report(report_path)
+    objects, warnings = _shot_objects(scene, options, use_passes)
+    run_inputs = {**_run_inputs(scene, options, objects, size, use_passes), "compositor": own}
+    entries = {}
+    filters = {}
+    step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
+    job = FrameJob(scene, source, options.format, objects, filters, step, use_passes, options, own)
 
-    # The scene, from the first frame's plate.
+    def write_report():
+        write_json(report_path, run_report(header, entries, frames, warnings, started))
+
+    with sequence.suspended():
+        if objects and not use_passes:
+            warnings += job.attach(image, frames[0])
+        for i, frame in enumerate(frames, 1):
+            t0 = time.perf_counter()
+            path = outputs[frame]
+            element = element_path(out, name, frame)
+            inputs = _frame_inputs(run_inputs, source, frame)
+            skip, why = _resume([path, element], size, inputs, options.overwrite)
+            if skip:
+                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path, element]}))
+                entry["status"] = "skipped"
+                entry.pop("rendered_again", None)
+                entry["fingerprint"] = record.digest(inputs)
+                if objects and not use_passes:
+                    job.step_through(frame)
+                entries[frame] = entry
+                done = os.path.basename(path)
+                print(f"frame {i}/{len(frames)} [{frame}] skipped: {done} is complete")
+                write_report()
+                continue
+            if why:
+                print(f"frame {i}/{len(frames)} [{frame}] rendered again: {why}", flush=True)
+            try:
+                entry = _render_one(job, frame, path, element, inputs, why)
+            except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
+                error = f"frame {frame}: {one_line(exc)}"
+                entries[frame] = {"frame": frame, "status": "failed", "error": error}
+                with contextlib.suppress(OSError, ValueError):
+                    write_report()
+                raise BatchError(error) from exc
+            entries[frame] = entry
+            write_report()
+            entry_seconds = time.perf_counter() - t0
+            print(
+                f"frame {i}/{len(frames)} [{frame}] {os.path.basename(path)}: plate "
+                f"{os.path.basename(entry['plate'])}, {entry['summary']}, {entry_seconds:.2f} s",
+                flush=True,
+            )
+    report = run_report(header, entries, frames, warnings, started, complete=True)
+    write_json(report_path, report)
+    totals = report["totals"]
+    print(
+        f"done: {totals['rendered']} rendered, {totals['skipped']} skipped, "
+        f"{totals['wall_seconds']:.2f} s; report {report_path}"
+    )
+    return 0
+
+
+def _prepare(scene, options, source, frames, outputs, report_path, out, name):
+    """The scene set up from the first frame's plate (the artist's compositor kept), the dead
+    runs' temporary files of this run's outputs removed, the run's header made and its first
+    lines printed. Returns (the first plate's image, whether passes run, the shot's own
+    compositor or None, the render size, the header)."""
+    settings = scene.virtual_reflections
     scene.frame_set(frames[0])
     image = source.load(frames[0])
     settings.plate_image = image
@@ -386,7 +451,12 @@ def _render_frames(options, started, source, frames, outputs, report_path):
         f"render {size[0]}x{size[1]} with {scene.render.engine}, out {out}"
     )
     print(f"composites: {header['colour']['over']}; {header['colour']['composite']}")
-    previous = read_report(report_path)
+    return image, use_passes, own, size, header
+
+
+def _shot_objects(scene, options, use_passes):
+    """The objects that reflect the plate (none with --no-reflections; ValueError when there
+    are none to reflect it) and the run's first warnings."""
     objects = []
     warnings = []
     if not options.no_reflections:
@@ -395,63 +465,18 @@ def _render_frames(options, started, source, frames, outputs, report_path):
             raise ValueError("no object to reflect the plate (use --objects or mark objects)")
         if use_passes:
             warnings.append("--passes: pass 1 is Generate, so bounds are not smoothed over frames")
+    return objects, warnings
 
-    run_inputs = {**_run_inputs(scene, options, objects, size, use_passes), "compositor": own}
-    entries = {}
-    filters = {}
-    step = max(1, frames[1] - frames[0]) if len(frames) > 1 else 1
-    job = FrameJob(scene, source, fmt, objects, filters, step, use_passes, options, own)
-    with sequence.suspended():
-        if objects and not use_passes:
-            warnings += job.attach(image, frames[0])
-        for i, frame in enumerate(frames, 1):
-            t0 = time.perf_counter()
-            path = outputs[frame]
-            element = element_path(out, name, frame)
-            inputs = _frame_inputs(run_inputs, source, frame)
-            skip, why = _resume([path, element], size, inputs, options.overwrite)
-            if skip:
-                entry = dict(previous.get(frame, {"frame": frame, "outputs": [path, element]}))
-                entry["status"] = "skipped"
-                entry.pop("rendered_again", None)
-                entry["fingerprint"] = record.digest(inputs)
-                if objects and not use_passes:
-                    job.step_through(frame)
-                entries[frame] = entry
-                done = os.path.basename(path)
-                print(f"frame {i}/{len(frames)} [{frame}] skipped: {done} is complete")
-                write_json(report_path, run_report(header, entries, frames, warnings, started))
-                continue
-            if why:
-                print(f"frame {i}/{len(frames)} [{frame}] rendered again: {why}", flush=True)
-            try:
-                record.forget(path)  # the old record must not vouch for new files
-                entry = job.render(frame, path, element)
-                entry["fingerprint"] = record.write(path, inputs)
-                if why:
-                    entry["rendered_again"] = why
-            except (ValueError, OSError, RuntimeError) as exc:  # after frames were written
-                error = f"frame {frame}: {one_line(exc)}"
-                entries[frame] = {"frame": frame, "status": "failed", "error": error}
-                with contextlib.suppress(OSError, ValueError):
-                    write_json(report_path, run_report(header, entries, frames, warnings, started))
-                raise BatchError(error) from exc
-            entries[frame] = entry
-            write_json(report_path, run_report(header, entries, frames, warnings, started))
-            entry_seconds = time.perf_counter() - t0
-            print(
-                f"frame {i}/{len(frames)} [{frame}] {os.path.basename(path)}: plate "
-                f"{os.path.basename(entry['plate'])}, {entry['summary']}, {entry_seconds:.2f} s",
-                flush=True,
-            )
-    report = run_report(header, entries, frames, warnings, started, complete=True)
-    write_json(report_path, report)
-    totals = report["totals"]
-    print(
-        f"done: {totals['rendered']} rendered, {totals['skipped']} skipped, "
-        f"{totals['wall_seconds']:.2f} s; report {report_path}"
-    )
-    return 0
+
+def _render_one(job, frame, path, element, inputs, why):
+    """Render ``frame`` (its old record forgotten first: it must not vouch for new files) and
+    record its inputs; returns its report entry."""
+    record.forget(path)  # the old record must not vouch for new files
+    entry = job.render(frame, path, element)
+    entry["fingerprint"] = record.write(path, inputs)
+    if why:
+        entry["rendered_again"] = why
+    return entry
 
 
 @dataclass(frozen=True, eq=False)
