@@ -196,10 +196,37 @@ def measure(addon, build_scenes, render_sample, args):
     with quiet():  # process start-up (kernels, denoiser) out of the figures
         interreflect.render_passes(scene, bpy.context.evaluated_depsgraph_get(), objects, plate, 1)
 
+    runs, totals, composites = _rounds(
+        args.repeat, settings, interreflect, scene, objects, plate, engine, quiet
+    )
+    table = {key: median_reports(value) for key, value in runs.items()}
+    print(
+        f"Load average at the end (1, 5, 15 min): {', '.join(f'{x:.1f}' for x in os.getloadavg())}"
+    )
+    _print_table(table, runs, totals)
+    if not args.no_charts:
+        os.makedirs(args.out, exist_ok=True)
+        charts(args.out, table, runs)
+        with quiet():
+            settings.triangles = TRIANGLES[0]
+            first, _, _ = interreflect.render_passes(
+                scene, bpy.context.evaluated_depsgraph_get(), objects, plate, 1
+            )
+        second, reports = composites[(TRIANGLES[0], 2)]
+        encode = import_module(addon.__name__ + ".virtual_reflections.colour").linear_to_srgb
+        path = os.path.join(args.out, "interreflection_passes.png")
+        picture(path, first, second, reports[1].border, encode)
+        print(f"wrote charts and picture into {args.out}")
+    return 0
+
+
+def _rounds(repeat, settings, interreflect, scene, objects, plate, engine, quiet):
+    """``repeat`` rounds of every triangle count and pass count, each from a cold lookup cache:
+    (each key's pass reports per round, its times per frame, its last composite and reports)."""
     runs = {(n, r): [] for n in TRIANGLES for r in PASSES}
     totals = {key: [] for key in runs}
     composites = {}
-    for rep in range(args.repeat):
+    for rep in range(repeat):
         for n in TRIANGLES:
             settings.triangles = n
             for r in PASSES:
@@ -215,11 +242,12 @@ def measure(addon, build_scenes, render_sample, args):
                     f"{len(reports)} passes, changes "
                     + " ".join(f"{x.change:.5f}" for x in reports)
                 )
+    return runs, totals, composites
 
-    table = {key: median_reports(value) for key, value in runs.items()}
-    print(
-        f"Load average at the end (1, 5, 15 min): {', '.join(f'{x:.1f}' for x in os.getloadavg())}"
-    )
+
+def _print_table(table, runs, totals) -> None:
+    """Print the Table 2 rows (time per frame, per pass first / later, of which render) per pass
+    count and triangle count, and whether the two targets are met."""
     print()
     print("| sphere and torus | n = 32 | n = 128 |")
     print("|---|---|---|")
@@ -257,20 +285,6 @@ def measure(addon, build_scenes, render_sample, args):
         f"Target: auto-r stops within 3 passes: r = {sorted(set(autos))} -> "
         + ("met" if max(autos) <= 3 else "NOT met")
     )
-    if not args.no_charts:
-        os.makedirs(args.out, exist_ok=True)
-        charts(args.out, table, runs)
-        with quiet():
-            settings.triangles = TRIANGLES[0]
-            first, _, _ = interreflect.render_passes(
-                scene, bpy.context.evaluated_depsgraph_get(), objects, plate, 1
-            )
-        second, reports = composites[(TRIANGLES[0], 2)]
-        encode = import_module(addon.__name__ + ".virtual_reflections.colour").linear_to_srgb
-        path = os.path.join(args.out, "interreflection_passes.png")
-        picture(path, first, second, reports[1].border, encode)
-        print(f"wrote charts and picture into {args.out}")
-    return 0
 
 
 def charts(out, table, runs):
