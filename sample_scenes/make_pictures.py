@@ -150,6 +150,47 @@ def letter_regions(picture, seg, scale, size):
     return picture
 
 
+def _map_pictures(imagefiles, segmentation, params, build_scenes, bbox, work, out, clock):
+    """The pictures of the map plate's engine outputs into ``out``: the segmentation with its
+    regions lettered, the paper's lat-long map and its cube cross, labelled (``bbox``: the
+    spheres' bounds on that plate; ``work``: a scratch folder). Returns their paths."""
+    written = []
+    plate_path = build_scenes.plate_files(MAP_PLATE)[0]
+    box = ["--bbox", *(f"{v:.1f}" for v in bbox), "--triangles", TRIANGLES]
+    overlay = os.path.join(work, "segmentation.png")
+    clock(engine_cli("segment", plate_path, "-o", overlay, *box))
+    picture = resize(imagefiles.read_plate(overlay).pixels, 640)
+    plate_w, plate_h = _plate_size(imagefiles, plate_path)
+    seg = segmentation.segment(plate_w, plate_h, bbox, params.Params())
+    picture = letter_regions(picture, seg, 640 / plate_w, 16)
+    path = os.path.join(out, "segmentation.png")
+    imagefiles.write_map(path, picture)
+    written.append(path)
+
+    latlong = os.path.join(work, "latlong.exr")
+    paper = ("--method", "paper")  # the engine CLI's default is Camera View
+    clock(engine_cli("envmap", plate_path, "-o", latlong, *box, *paper, "--width", 1024))
+    picture = resize(imagefiles.read_plate(latlong).pixels, 640)
+    for fx, label in LATLONG_LABELS:
+        x = min(max(4, round(fx * 640 - 3.2 * len(label))), 640 - 7 * len(label))
+        picture = text(picture, x, 312, label, 13)
+    path = os.path.join(out, "map_latlong.png")
+    imagefiles.write_map(path, picture)
+    written.append(path)
+
+    strip = os.path.join(work, "cube.exr")
+    cube = ("--layout", "cube", "--width", 160)
+    clock(engine_cli("envmap", plate_path, "-o", strip, *box, *paper, *cube))
+    cross = cube_cross(imagefiles.read_plate(strip).pixels)
+    s = cross.shape[1] // 4
+    for (col, row), label in CROSS_LABELS:
+        cross = text(cross, col * s + 5, row * s + 16, label, 13)
+    path = os.path.join(out, "map_cube.png")
+    imagefiles.write_map(path, cross)
+    written.append(path)
+    return written
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(
         prog="make_pictures", description=__doc__.splitlines()[0], allow_abbrev=False
@@ -189,39 +230,9 @@ def main(argv=None):
                 written.append(path)
                 clock(f"wrote {path}")
 
-            plate_path = build_scenes.plate_files(MAP_PLATE)[0]
-            box = ["--bbox", *(f"{v:.1f}" for v in bbox), "--triangles", TRIANGLES]
-            overlay = os.path.join(work, "segmentation.png")
-            clock(engine_cli("segment", plate_path, "-o", overlay, *box))
-            picture = resize(imagefiles.read_plate(overlay).pixels, 640)
-            plate_w, plate_h = _plate_size(imagefiles, plate_path)
-            seg = segmentation.segment(plate_w, plate_h, bbox, params.Params())
-            picture = letter_regions(picture, seg, 640 / plate_w, 16)
-            path = os.path.join(args.out, "segmentation.png")
-            imagefiles.write_map(path, picture)
-            written.append(path)
-
-            latlong = os.path.join(work, "latlong.exr")
-            paper = ("--method", "paper")  # the engine CLI's default is Camera View
-            clock(engine_cli("envmap", plate_path, "-o", latlong, *box, *paper, "--width", 1024))
-            picture = resize(imagefiles.read_plate(latlong).pixels, 640)
-            for fx, label in LATLONG_LABELS:
-                x = min(max(4, round(fx * 640 - 3.2 * len(label))), 640 - 7 * len(label))
-                picture = text(picture, x, 312, label, 13)
-            path = os.path.join(args.out, "map_latlong.png")
-            imagefiles.write_map(path, picture)
-            written.append(path)
-
-            strip = os.path.join(work, "cube.exr")
-            cube = ("--layout", "cube", "--width", 160)
-            clock(engine_cli("envmap", plate_path, "-o", strip, *box, *paper, *cube))
-            cross = cube_cross(imagefiles.read_plate(strip).pixels)
-            s = cross.shape[1] // 4
-            for (col, row), label in CROSS_LABELS:
-                cross = text(cross, col * s + 5, row * s + 16, label, 13)
-            path = os.path.join(args.out, "map_cube.png")
-            imagefiles.write_map(path, cross)
-            written.append(path)
+            written += _map_pictures(
+                imagefiles, segmentation, params, build_scenes, bbox, work, args.out, clock
+            )
     finally:
         if registered:  # the bpy 4.5 module hangs at exit while the add-on is registered
             addon.unregister()
