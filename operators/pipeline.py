@@ -22,7 +22,7 @@ from ..virtual_reflections import Params, lookup_table, methods
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.ggx_lobe import dominant_shift
-from ..virtual_reflections.params import sky_gain_for
+from ..virtual_reflections.params import sky_prior_for
 from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
 from .node_trees import shading, world_probe
@@ -94,18 +94,18 @@ def params(settings, intrinsics=None) -> Params:
         triangles=n,
         method=method,
         intrinsics=tuple(intrinsics) if camera else None,
-        sky_gain=scene_sky_gain(settings),
+        **scene_sky_prior(settings),
         sky_tint=scene_sky_tint(settings),
     )
 
 
-def scene_sky_gain(settings, roughness: float = 0.0) -> float:
-    """The sky prior's gain the scene's ``settings`` ask for, seen by a surface of
-    ``roughness`` (params.sky_gain_for): the named Surroundings', or with Custom the artist's
-    Sky Brightness."""
+def scene_sky_prior(settings, roughness: float = 0.0) -> dict:
+    """The sky prior the scene's ``settings`` ask for, seen by a surface of ``roughness``
+    (params.sky_prior_for: Params' sky_gain, sky_source and sky_tint_share): the named
+    Surroundings', or with Custom the artist's Sky Brightness."""
     kind = settings.surroundings.lower()
     custom = settings.sky_brightness if kind == "custom" else None
-    return sky_gain_for(kind, roughness, custom)
+    return sky_prior_for(kind, roughness, custom)
 
 
 def contact_shadow(settings) -> float:
@@ -267,7 +267,7 @@ def map_roughness(settings, objects) -> float:
 
 def sky_roughness(settings, objects, roughness) -> float:
     """The roughness whose view of the unseen sky the map of ``objects`` holds
-    (params.sky_gain_for): in the Mix look the ``roughness`` it is pre-filtered for
+    (params.sky_prior_for): in the Mix look the ``roughness`` it is pre-filtered for
     (`map_roughness`); in the World look the smoothest object's surface — the renderer's own
     BSDF blurs the world, and a rough surface's lobe gathers a light's energy that a mirror
     rarely meets, so a world for rough surfaces only holds the brighter sky they see (a mirror
@@ -303,9 +303,9 @@ def map_params(view, settings, depsgraph, objects, found, roughness) -> Params:
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
     # A rough surface sees a brighter sky (`sky_roughness`).
-    gain = scene_sky_gain(settings, sky_roughness(settings, objects, roughness))
+    prior = scene_sky_prior(settings, sky_roughness(settings, objects, roughness))
     if per_point_ground(settings, roughness):
-        return dataclasses.replace(view.params, up=up, sky_gain=gain)
+        return dataclasses.replace(view.params, up=up, **prior)
     origin = bounds.to_engine_frame(view.projection, point=centre)
     # Rounded to a quarter of a plate pixel at the object's depth (and up to 1e-4), as the
     # boxes are rounded to whole pixels: a pose seen before finds its cached table, and a
@@ -317,7 +317,7 @@ def map_params(view, settings, depsgraph, objects, found, roughness) -> Params:
     ground = tuple(round(v / step) * step for v in (*origin, height, radius))
     shadow = contact_shadow(settings)
     return dataclasses.replace(
-        view.params, method="ground", ground=(*ground, shadow), up=up, sky_gain=gain
+        view.params, method="ground", ground=(*ground, shadow), up=up, **prior
     )
 
 

@@ -163,7 +163,7 @@ class BatchOptions:
     )
     sky_brightness: float | None = _option(
         help="Surroundings custom: the unseen sky is G times the ground's brightness in the "
-        f"plate (0..{MAX_SKY_GAIN:g}; auto takes {SKY_GAINS['auto']:g}, open "
+        f"plate (0..{MAX_SKY_GAIN:g}; an average place is near {SKY_GAINS['auto']:g}, open "
         f"{SKY_GAINS['open']:g}, enclosed {SKY_GAINS['enclosed']:g}); default: the shot's "
         "setting",
         type=float,
