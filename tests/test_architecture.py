@@ -56,6 +56,10 @@ And one on the Blender layer's rooms (issue 43, item 4):
     other room of it, `node_trees/` only `scene/`, the modules at the top of `operators/` (the
     map pipeline and the features) only those two, and `batch/` and `ops.py` (the two entries)
     anything but each other; a room's `__init__.py` imports nothing of the add-on.
+
+And one on every Python file of the repository but the tests (issue 43, item 6):
+13. no function or method is longer than MAX_FUNCTION_LINES (80) lines, from its `def` to its
+    last line: a longer one is split where a reader loses the thread.
 """
 
 from __future__ import annotations
@@ -1193,4 +1197,48 @@ def test_the_rule_12_sees_imports_up_and_sideways(tmp_path):
         "(a room's __init__.py imports nothing)",
         "operators/scene/plate.py:1 imports operators/node_trees/shading.py "
         "(sideways or up between the rooms of operators/)",
+    ]
+
+
+# --- rule 13: no function longer than a reader can follow ------------------------------------
+
+MAX_FUNCTION_LINES = 80
+
+
+def long_functions(root: Path) -> list[str]:
+    """`file:line name (n lines)` of each function or method over MAX_FUNCTION_LINES in the
+    repository's Python files, its tests aside (rule 13)."""
+    found = []
+    for path in python_files(root):
+        rel = path.relative_to(root)
+        if rel.parts[0] == "tests":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    found.append(f"{rel.as_posix()}:{node.lineno} {node.name} ({n} lines)")
+    return sorted(found)
+
+
+def test_no_function_is_longer_than_a_reader_can_follow():
+    problems = long_functions(REPO)
+    assert not problems, _report(f"functions over {MAX_FUNCTION_LINES} lines", problems)
+
+
+def test_the_rule_13_sees_long_functions_and_methods_but_not_the_tests(tmp_path):
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))  # def + 80 lines
+    short = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES - 1))
+    root = _package(
+        tmp_path,
+        {
+            "tool.py": f"def long():\n{body}def fine():\n{short}",
+            "pkg/__init__.py": "",
+            "pkg/mod.py": "class K:\n    def method(self):\n" + body.replace("    ", "        "),
+            "tests/test_x.py": f"def test_long():\n{body}",
+        },
+    )
+    assert long_functions(root) == [
+        f"pkg/mod.py:2 method ({MAX_FUNCTION_LINES + 1} lines)",
+        f"tool.py:1 long ({MAX_FUNCTION_LINES + 1} lines)",
     ]
