@@ -127,7 +127,7 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
             dataclasses.replace(
                 table,
                 fill=dataclasses.replace(
-                    fill, sky_gain=g, sky_tint=neutral, sky_source="ground", sky_tint_share=0.0
+                    fill, sky_gain=g, sky_tint=neutral, sky_from_plate=0.0, sky_tint_share=0.0
                 ),
             ),
             plate,

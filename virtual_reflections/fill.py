@@ -213,7 +213,7 @@ def fill_profile(
     sky=None,
     sky_gain: float = 1.0,
     sky_tint=None,
-    sky_source: str = "ground",
+    sky_from_plate: float = 0.0,
     sky_tint_share: float = 0.0,
 ) -> np.ndarray:
     """The fill (sides * FILL_BINS, 3) float32 of one frame, sides = len(window): per side and
@@ -232,7 +232,7 @@ def fill_profile(
     neutral sky `sky_gain` times as bright as the whole plate (its log-average brightened by
     `energy` as above); with `sky_share`, every bin above the horizon is that sky alone
     (docs/scenes3d.md, "The unseen sky"). `sky_tint` (R, G, B; None: neutral) colours that sky,
-    its luminance kept. `sky_source` and `sky_tint_share`: `sky_prior`'s.
+    its luminance kept. `sky_from_plate` and `sky_tint_share`: `sky_prior`'s.
     """
     sides = window.shape[0]
     size = sides * FILL_BINS
@@ -276,13 +276,13 @@ def fill_profile(
         luma = (out @ REC709_LUMA)[:, None]
         out[:] = luma + np.float32(saturation) * (out - luma)
     if sky is not None and (sky < 1).any():
-        prior = sky_prior(pixels, bins, energy, sky_gain, sky_tint, sky_source, sky_tint_share)
+        prior = sky_prior(pixels, bins, energy, sky_gain, sky_tint, sky_from_plate, sky_tint_share)
         share = sky[:, None]
         out[:] = share * out + (1.0 - share) * prior
     return out
 
 
-def sky_prior(pixels, bins, energy, gain, tint=None, source="ground", share=0.0) -> np.ndarray:
+def sky_prior(pixels, bins, energy, gain, tint=None, from_plate=0.0, share=0.0) -> np.ndarray:
     """The sky prior's colour: where the plate does not show the sky (`fill_profile`).
 
     Parameters
@@ -292,25 +292,28 @@ def sky_prior(pixels, bins, energy, gain, tint=None, source="ground", share=0.0)
     bins, energy
         As for `prior_level`.
     gain : float
-        `Params.sky_gain`: times the source's level.
+        `Params.sky_gain`: times the level.
     tint : (r, g, b) or None
         `Params.sky_tint`, its luminance taken out.
-    source : {"ground", "plate"}
-        "ground": `prior_level`, the ground near the horizon, neutral. "plate": the whole
-        plate's mean colour, each pixel clipped at 1 (display white: a sun or a lamp in an HDR
-        plate counts as white), its hue kept by `share` (0: grey of its luminance).
+    from_plate : float
+        `Params.sky_from_plate`, the level's source: 0, `prior_level` (the ground near the
+        horizon); 1, the whole plate's mean luminance, each pixel clipped at 1 (display white:
+        a sun or a lamp in an HDR plate counts as white); between, a geometric blend.
     share : float
-        `Params.sky_tint_share`.
+        `Params.sky_tint_share`: how far the colour goes from grey to the plate mean's hue.
 
     Returns
     -------
     (3,) float32 ndarray
     """
-    if source != "plate":
+    if from_plate <= 0.0 and share <= 0.0:  # the ground band's neutral sky
         return np.float32(gain * prior_level(pixels, bins, energy)) * tint_colour(tint)
     mean = np.minimum(pixels.reshape(-1, 3), 1.0).mean(0, dtype=np.float64)
     level = float(mean @ REC709_LUMA)
     hue = mean / level if level > 1e-30 else np.ones(3)
+    if from_plate < 1.0:
+        ground = prior_level(pixels, bins, energy)
+        level = max(level, 1e-30) ** from_plate * max(ground, 1e-30) ** (1.0 - from_plate)
     colour = (1.0 - share) + share * hue
     return np.float32(gain * level) * colour.astype(np.float32) * tint_colour(tint)
 

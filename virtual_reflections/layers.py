@@ -152,7 +152,7 @@ class FillProfile:
     sky: np.ndarray | None = None  # sky_share, with a world horizon (Params.up)
     sky_gain: float = 1.0
     sky_tint: tuple = (1.0, 1.0, 1.0)  # Params.sky_tint
-    sky_source: str = "ground"  # Params.sky_source
+    sky_from_plate: float = 0.0  # Params.sky_from_plate
     sky_tint_share: float = 0.0  # Params.sky_tint_share
 
     def write_profile(self, pyramid, shapes, first: int, source) -> None:
@@ -180,7 +180,7 @@ class FillProfile:
             sky=self.sky,
             sky_gain=self.sky_gain,
             sky_tint=self.sky_tint,
-            sky_source=self.sky_source,
+            sky_from_plate=self.sky_from_plate,
             sky_tint_share=self.sky_tint_share,
         )
 

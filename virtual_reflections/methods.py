@@ -112,7 +112,10 @@ SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
 # stays within 1 dB of that flat world): `python -m study.scenes3d.heldout_sky fit OUT --auto`.
 AUTO_SKY_GAIN = 1.4
 AUTO_SKY_TINT = 0.75
-SKY_SOURCES = ("plate", "ground")  # Params.sky_source: what the prior's level is taken from
+# A rough surface's map (the Mix look's pre-filtered map, the World look's light) takes the
+# ground band's brighter sky, ROUGH_SKY_RATIOS' (fitted with it): Auto blends from the plate's
+# colour at roughness 0 to that sky at AUTO_SKY_ROUGHNESS, the first rough knot, and beyond.
+AUTO_SKY_ROUGHNESS = 0.15
 
 # Surroundings: how bright the sky the plate does not show is taken to be (Camera View +
 # Ground). The first three are SKY_GAINS'; "world" reads the shot's world HDRI, "custom" the

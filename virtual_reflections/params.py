@@ -15,12 +15,12 @@ import numpy as np
 from .camera_view import camera_intrinsics
 from .methods import (
     AUTO_SKY_GAIN,
+    AUTO_SKY_ROUGHNESS,
     AUTO_SKY_TINT,
     MAX_TRIANGLES,
     METHOD_ALIASES,
     METHOD_NAMES,
     SKY_GAINS,
-    SKY_SOURCES,
     reads_ground,
     uses_camera,
 )
@@ -70,9 +70,10 @@ def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None)
 def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None) -> dict:
     """Params' sky prior fields for named surroundings, seen by a surface of a given roughness.
 
-    Auto takes the photo's own mean colour (``sky_source`` "plate", AUTO_SKY_GAIN, its hue
-    AUTO_SKY_TINT of the way from grey); the others the ground near the horizon
-    (`sky_gain_for`). A rough surface's map takes a brighter sky by ROUGH_SKY_RATIOS[kind].
+    Auto takes the photo's own mean colour for a mirror (``sky_from_plate`` 1, AUTO_SKY_GAIN,
+    its hue AUTO_SKY_TINT of the way from grey) and, from AUTO_SKY_ROUGHNESS on, the ground
+    band's sky brighter by ROUGH_SKY_RATIOS["auto"] (`sky_gain_for`), the two blended
+    geometrically in between; the other kinds take the ground band's (`sky_gain_for`).
 
     Parameters
     ----------
@@ -87,14 +88,19 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
     Returns
     -------
     dict
-        ``sky_gain``, ``sky_source`` and ``sky_tint_share``, to pass to `Params`.
+        ``sky_gain``, ``sky_from_plate`` and ``sky_tint_share``, to pass to `Params`.
     """
     if custom is not None or (kind != "auto" and kind in SKY_GAINS):  # world, unknown: Auto's
         gain = sky_gain_for(kind, roughness, custom)
-        return {"sky_gain": gain, "sky_source": "ground", "sky_tint_share": 0.0}
-    ratio = sky_gain_for("auto", roughness) / SKY_GAINS["auto"]
-    gain = min(AUTO_SKY_GAIN * ratio, MAX_SKY_GAIN)
-    return {"sky_gain": gain, "sky_source": "plate", "sky_tint_share": AUTO_SKY_TINT}
+        return {"sky_gain": gain, "sky_from_plate": 0.0, "sky_tint_share": 0.0}
+    r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
+    plate = 1.0 - min(r / AUTO_SKY_ROUGHNESS, 1.0)
+    gain = AUTO_SKY_GAIN**plate * sky_gain_for("auto", r) ** (1.0 - plate)
+    return {
+        "sky_gain": min(gain, MAX_SKY_GAIN),
+        "sky_from_plate": plate,
+        "sky_tint_share": AUTO_SKY_TINT * plate,
+    }
 
 
 @dataclass(frozen=True)
@@ -263,32 +269,32 @@ class World:
         The world's up (the ground's normal), needed by the ground method: unseen directions
         are then filled by elevation above the world's horizon, not the camera's.
     sky_gain : float
-        With `up`: how many times brighter than `sky_source` the sky is taken to be where the
+        With `up`: how many times brighter than its level (`sky_from_plate`) the sky is taken
+        to be where the
         plate does not show it, 0..MAX_SKY_GAIN; default Auto's, AUTO_SKY_GAIN
         (`sky_prior_for`; docs/ground.md).
     sky_tint : (r, g, b)
         The sky prior's colour, linear, >= 0, not black, its luminance taken out: (1, 1, 1) is
         neutral (the add-on's, but for Surroundings Custom).
-    sky_source : {"plate", "ground"}
-        What the prior's level is taken from: "plate", the whole plate's mean colour (each
-        pixel clipped at 1); "ground", the plate's ground in a band 5-40 degrees below the
-        horizon (fill.prior_level).
+    sky_from_plate : float
+        What the prior's level is taken from, 0..1: 1, the whole plate's mean colour (each
+        pixel clipped at 1); 0, the plate's ground in a band 5-40 degrees below the horizon
+        (fill.prior_level); between, the two levels blended geometrically.
     sky_tint_share : float
-        With "plate": how far the prior's hue goes from grey to the plate's mean hue, 0..1.
+        How far the prior's hue goes from grey to the plate's mean hue, 0..1.
     """
 
     up: tuple | None = None
     sky_gain: float = AUTO_SKY_GAIN
     sky_tint: tuple = (1.0, 1.0, 1.0)
-    sky_source: str = "plate"
+    sky_from_plate: float = 1.0
     sky_tint_share: float = AUTO_SKY_TINT
 
     def __post_init__(self):
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
             raise ValueError(f"sky_gain must be 0..{MAX_SKY_GAIN:g}, got {self.sky_gain}")
-        if self.sky_source not in SKY_SOURCES:
-            names = ", ".join(SKY_SOURCES)
-            raise ValueError(f"sky_source must be one of {names}, got {self.sky_source!r}")
+        if not (math.isfinite(self.sky_from_plate) and 0.0 <= self.sky_from_plate <= 1.0):
+            raise ValueError(f"sky_from_plate must be 0..1, got {self.sky_from_plate}")
         if not (math.isfinite(self.sky_tint_share) and 0.0 <= self.sky_tint_share <= 1.0):
             raise ValueError(f"sky_tint_share must be 0..1, got {self.sky_tint_share}")
         tint = tuple(float(v) for v in self.sky_tint)

@@ -371,7 +371,7 @@ def _camera_fill(layout, size, shapes, level, base, intrinsics, width, params, d
         sky_share(sides) if up is not None else None,
         world.sky_gain,
         world.sky_tint,
-        world.sky_source,
+        world.sky_from_plate,
         world.sky_tint_share,
     )
     _frozen(bins, window, counts)

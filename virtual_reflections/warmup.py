@@ -54,7 +54,8 @@ def compiled_kernels() -> list[str]:
     return sorted(
         name
         for name, value in vars(module).items()
-        if getattr(value, "_cache", None) is not None and not name.startswith("_")
+        if getattr(value, "_cache", None) is not None
+        and not name.startswith("_")
         and type(value._cache).__name__ != "NullCache"
     )
 

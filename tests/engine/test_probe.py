@@ -58,7 +58,8 @@ def test_the_map_splits_exactly_at_the_prior():
         intrinsics=INTRINSICS,
         up=up_when_pitched(30),
         sky_gain=1.6,
-        sky_source="ground",
+        sky_from_plate=0.0,
+        sky_tint_share=0.0,
     )
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     env = apply_table(table, plate)
@@ -98,7 +99,8 @@ def test_the_probe_fills_the_unseen_sky_along_the_right_directions():
         intrinsics=INTRINSICS,
         up=up_when_pitched(30),
         sky_gain=1.6,
-        sky_source="ground",
+        sky_from_plate=0.0,
+        sky_tint_share=0.0,
     )
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     without, weight = prior_parts(table, plate)
@@ -150,7 +152,8 @@ def test_the_whole_unseen_sky_is_the_prior():
         intrinsics=INTRINSICS,
         up=up_when_pitched(0),
         sky_gain=1.6,
-        sky_source="ground",
+        sky_from_plate=0.0,
+        sky_tint_share=0.0,
     )
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     d = texel_directions("latlong", 256)

@@ -13,6 +13,7 @@ from virtual_reflections.fill import sky_in_view
 from virtual_reflections.layouts import texel_directions
 from virtual_reflections.params import (
     AUTO_SKY_GAIN,
+    AUTO_SKY_ROUGHNESS,
     AUTO_SKY_TINT,
     ROUGH_SKY_RATIOS,
     SKY_GAINS,
@@ -63,7 +64,12 @@ def test_the_unseen_sky_is_the_gain_times_the_plate_and_the_ground_stays():
     sky, ahead = {}, {}
     for kind, gain in SKY_GAINS.items():
         params = Params(
-            method="camera", intrinsics=INTRINSICS, up=up, sky_gain=gain, sky_source="ground"
+            method="camera",
+            intrinsics=INTRINSICS,
+            up=up,
+            sky_gain=gain,
+            sky_from_plate=0.0,
+            sky_tint_share=0.0,
         )
         env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
         d = texel_directions("latlong", env.shape[1])
@@ -90,7 +96,12 @@ def test_a_tinted_sky_keeps_its_luminance_and_the_ground():
     maps = {}
     for colour in ((1.0, 1.0, 1.0), tint):
         params = Params(
-            method="camera", intrinsics=INTRINSICS, up=up, sky_tint=colour, sky_source="ground"
+            method="camera",
+            intrinsics=INTRINSICS,
+            up=up,
+            sky_tint=colour,
+            sky_from_plate=0.0,
+            sky_tint_share=0.0,
         )
         maps[colour] = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
     d = texel_directions("latlong", 256)
@@ -136,7 +147,8 @@ def test_a_plate_without_ground_is_the_sky_itself():
             intrinsics=INTRINSICS,
             up=up,
             sky_gain=SKY_GAINS["auto"],
-            sky_source="ground",
+            sky_from_plate=0.0,
+            sky_tint_share=0.0,
         )
         env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
         d = texel_directions("latlong", env.shape[1])
@@ -153,7 +165,7 @@ def _straight_up(plate, **fields):
 
 
 def test_auto_takes_the_plate_mean_colour_brightened_and_half_way_to_its_hue():
-    """Auto (Params' defaults, sky_source "plate"): straight up, the unseen sky is AUTO_SKY_GAIN
+    """Auto (Params' defaults, sky_from_plate 1): straight up, the unseen sky is AUTO_SKY_GAIN
     times the plate's mean luminance, its hue AUTO_SKY_TINT of the way from grey to the
     plate's; a sky_tint_share of 0 is grey, 1 the plate's own hue."""
     rng = np.random.default_rng(5)
@@ -180,22 +192,45 @@ def test_a_sun_in_an_hdr_plate_counts_as_white_in_autos_sky():
 
 
 def test_the_sky_prior_for_each_surroundings():
-    """`sky_prior_for`: Auto the plate's colour at AUTO_SKY_GAIN (brighter for a rough surface
-    by Auto's ratio); Open, Enclosed and Custom the ground's, neutral, at sky_gain_for's."""
+    """`sky_prior_for`: Auto the plate's colour at AUTO_SKY_GAIN for a mirror and, from
+    AUTO_SKY_ROUGHNESS on, the ground band's sky as before (brighter by Auto's ratio), blended
+    geometrically between; Open, Enclosed and Custom the ground's, neutral, at sky_gain_for's."""
     assert sky_prior_for("auto") == {
-        "sky_gain": AUTO_SKY_GAIN, "sky_source": "plate", "sky_tint_share": AUTO_SKY_TINT
+        "sky_gain": AUTO_SKY_GAIN, "sky_from_plate": 1.0, "sky_tint_share": AUTO_SKY_TINT
     }  # fmt: skip
     assert sky_prior_for("world") == sky_prior_for("auto")  # no HDRI in the world: Auto's
-    ratio = sky_gain_for("auto", 0.35) / SKY_GAINS["auto"]
-    assert sky_prior_for("auto", 0.35)["sky_gain"] == pytest.approx(AUTO_SKY_GAIN * ratio)
+    for rough in (AUTO_SKY_ROUGHNESS, 0.35, 1.0):
+        assert sky_prior_for("auto", rough) == {
+            "sky_gain": sky_gain_for("auto", rough), "sky_from_plate": 0.0,
+            "sky_tint_share": 0.0,
+        }  # fmt: skip
+    half = sky_prior_for("auto", AUTO_SKY_ROUGHNESS / 2)
+    assert half["sky_from_plate"] == pytest.approx(0.5)
+    assert half["sky_tint_share"] == pytest.approx(AUTO_SKY_TINT / 2)
+    between = (AUTO_SKY_GAIN * sky_gain_for("auto", AUTO_SKY_ROUGHNESS / 2)) ** 0.5
+    assert half["sky_gain"] == pytest.approx(between)
     for kind, custom in (("open", None), ("enclosed", None), ("custom", 2.5)):
         prior = sky_prior_for(kind, 0.2, custom)
         assert prior == {
-            "sky_gain": sky_gain_for(kind, 0.2, custom), "sky_source": "ground",
+            "sky_gain": sky_gain_for(kind, 0.2, custom), "sky_from_plate": 0.0,
             "sky_tint_share": 0.0,
         }  # fmt: skip
         Params(**prior)  # valid
-    with pytest.raises(ValueError, match="sky_source must be one of plate, ground"):
-        Params(sky_source="sky")
+    with pytest.raises(ValueError, match="sky_from_plate must be 0..1"):
+        Params(sky_from_plate=1.5)
     with pytest.raises(ValueError, match="sky_tint_share must be 0..1"):
         Params(sky_tint_share=1.5)
+
+
+def test_a_rough_surfaces_sky_moves_smoothly_from_the_plates_to_the_grounds():
+    """Straight up, the level at sky_from_plate f is the plate's mean level to the f times
+    the ground band's to the 1 - f (a flat ground with a bright band at its top, which the
+    two levels weigh differently)."""
+    plate = np.full((H, W, 3), 0.2, np.float32)
+    plate[:10] = 0.9  # a bright band at the top: the two levels differ
+    levels = {
+        f: float(_straight_up(plate, sky_gain=1.0, sky_tint_share=0.0, sky_from_plate=f).mean())
+        for f in (0.0, 0.5, 1.0)
+    }
+    assert abs(math.log(levels[1.0] / levels[0.0])) > 0.03
+    assert levels[0.5] == pytest.approx((levels[0.0] * levels[1.0]) ** 0.5, rel=0.01)

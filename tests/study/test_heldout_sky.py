@@ -117,7 +117,8 @@ def test_todays_prior_is_the_level_the_engine_sets():
         intrinsics=(f, f, w / 2, h / 2),
         up=up,
         sky_gain=SKY_GAINS["auto"],
-        sky_source="ground",
+        sky_from_plate=0.0,
+        sky_tint_share=0.0,
     )
     env = apply_table(lookup_table(w, h, (60, 30, 100, 60), params, "latlong", 256), plate)
     d = texel_directions("latlong", 256)
