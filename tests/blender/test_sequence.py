@@ -193,7 +193,8 @@ def test_smoothing_reduces_jitter_and_keeps_tables(live, seq, addon):
             sphere.keyframe_insert("location", index=0, frame=frame)
     finally:
         edit.keyframe_new_interpolation_type = interpolation
-    plate = module(addon, "scene.plate").frame(scene, 1)  # one plate for all frames: only bounds move
+    # one plate for all frames: only bounds move
+    plate = module(addon, "scene.plate").frame(scene, 1)
     results = {}
     lookup_table = importlib.import_module(f"{addon.__name__}.virtual_reflections").lookup_table
     for smoothing in (0.0, 0.8):

@@ -1,7 +1,7 @@
 """Surroundings: World HDRI (operators/node_trees/world_probe.py): the scene's world, an
-on-set HDRI, stands in for the guessed sky where the plate shows none, turned by its Mapping node and as
-bright as its Background's Strength; the world is read, never changed; a world without an
-HDRI says so and falls back to Auto.
+on-set HDRI, stands in for the guessed sky where the plate shows none, turned by its Mapping
+node and as bright as its Background's Strength; the world is read, never changed; a world
+without an HDRI says so and falls back to Auto.
 
 The shot of test_surroundings: a camera 35 degrees down at a grey ground, so the plate shows no
 sky and straight up from the ball the map holds the unseen sky alone.
