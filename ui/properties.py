@@ -117,8 +117,8 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         min=0.0,
         max=1.0,
         description="Surroundings Custom: the unseen sky's colour (its brightness is Sky "
-        "Brightness): white, neutral grey as under Auto; a blue for an open sky, an orange "
-        "for a sunset",
+        "Brightness): white, neutral grey as under Open Sky and Enclosed; a blue for an open "
+        "sky, an orange for a sunset",
     )
     front: EnumProperty(
         name="Front Face",

@@ -1,7 +1,7 @@
 """An on-set HDRI (a probe) for what the plate does not show.
 
 Camera View + Ground fills the directions no plate pixel shows above the horizon with a sky
-prior: a neutral grey whose level is guessed from the plate (fill.py, `Params.sky_gain`). When
+prior: a colour and level guessed from the plate (fill.sky_prior, `Params.sky_gain`). When
 the artist has the HDRI shot on set (a chrome ball or a panorama, usually already the scene's
 world), nothing there has to be guessed: every direction above the horizon that the plate does
 not show takes the HDRI along it instead, and everything the plate shows (and the ground below
