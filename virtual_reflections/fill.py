@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .parallel import chunks
-from .params import SKY_GAINS
+from .params import AUTO_SKY_GAIN, SKY_GAINS
 from .products import matmul
 
 FILL_BINS = 181  # the fill profile: 1-degree bins of camera-frame elevation, -90 .. 90
@@ -298,7 +298,9 @@ def sky_prior(pixels, bins, energy, gain, tint=None, from_plate=0.0, share=0.0) 
     from_plate : float
         `Params.sky_from_plate`, the level's source: 0, `prior_level` (the ground near the
         horizon); 1, the whole plate's mean luminance, each pixel clipped at 1 (display white:
-        a sun or a lamp in an HDR plate counts as white); between, a geometric blend.
+        a sun or a lamp in an HDR plate counts as white), over AUTO_SKY_GAIN where the plate
+        shows no ground (a camera looking up: the plate is the sky, as `prior_level`'s);
+        between, a geometric blend.
     share : float
         `Params.sky_tint_share`: how far the colour goes from grey to the plate mean's hue.
 
@@ -311,6 +313,8 @@ def sky_prior(pixels, bins, energy, gain, tint=None, from_plate=0.0, share=0.0) 
     mean = np.minimum(pixels.reshape(-1, 3), 1.0).mean(0, dtype=np.float64)
     level = float(mean @ REC709_LUMA)
     hue = mean / level if level > 1e-30 else np.ones(3)
+    if not shows_ground(bins):
+        level /= AUTO_SKY_GAIN
     if from_plate < 1.0:
         ground = prior_level(pixels, bins, energy)
         level = max(level, 1e-30) ** from_plate * max(ground, 1e-30) ** (1.0 - from_plate)
@@ -357,11 +361,41 @@ def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0)
     float
     """
     pixels = level_pixels.reshape(-1, 3)
-    below = HORIZON_BIN - bins % FILL_BINS  # degrees below the horizon (1-degree bins)
-    band = (below >= GROUND_BAND_DEG[0]) & (below <= GROUND_BAND_DEG[1])
-    if band.mean() >= MIN_GROUND_SHARE:
-        return sky_level(pixels[band], energy)
+    if shows_ground(bins):
+        return sky_level(pixels[ground_band(bins)], energy)
     return sky_level(pixels, energy) / SKY_GAINS["auto"]
+
+
+def ground_band(bins: np.ndarray) -> np.ndarray:
+    """Which of the fill's pixels lie GROUND_BAND_DEG below the world's horizon.
+
+    Parameters
+    ----------
+    bins : ndarray
+        Their elevation bins (`fill_geometry` with `up`).
+
+    Returns
+    -------
+    bool ndarray
+    """
+    below = HORIZON_BIN - bins % FILL_BINS  # degrees below the horizon (1-degree bins)
+    return (below >= GROUND_BAND_DEG[0]) & (below <= GROUND_BAND_DEG[1])
+
+
+def shows_ground(bins: np.ndarray) -> bool:
+    """Whether MIN_GROUND_SHARE of the fill's pixels lie in the ground band (not a camera
+    looking up).
+
+    Parameters
+    ----------
+    bins : ndarray
+        As for `ground_band`.
+
+    Returns
+    -------
+    bool
+    """
+    return bool(ground_band(bins).mean() >= MIN_GROUND_SHARE)
 
 
 def sky_level(level_pixels: np.ndarray, energy: float = 0.0) -> float:

@@ -137,23 +137,22 @@ def test_the_gain_for_a_rough_surface():
 def test_a_plate_without_ground_is_the_sky_itself():
     """A camera looking 25 degrees up sees no ground: the unseen sky straight up is the plate's
     own level (a flat plate: its colour's luminance), not the gain times it; a camera looking
-    30 degrees down takes the gain times its ground's level (above)."""
+    30 degrees down takes the gain times its ground's level (above). So do the ground band's
+    prior and Auto's from the plate's colour."""
     plate = np.full((H, W, 3), 0.3, np.float32)
     box = (60, 30, 100, 60)
-    for pitch, expected in ((-25.0, 0.3), (30.0, 0.3 * SKY_GAINS["auto"])):
-        up = up_when_pitched(pitch)
-        params = Params(
-            method="camera",
-            intrinsics=INTRINSICS,
-            up=up,
-            sky_gain=SKY_GAINS["auto"],
-            sky_from_plate=0.0,
-            sky_tint_share=0.0,
-        )
-        env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
-        d = texel_directions("latlong", env.shape[1])
-        straight_up = d @ np.array(up) > math.cos(math.radians(15))  # far above the frame
-        assert env[straight_up].mean() == pytest.approx(expected, rel=0.02), pitch
+    priors = (
+        (SKY_GAINS["auto"], {"sky_gain": SKY_GAINS["auto"], "sky_from_plate": 0.0}),
+        (AUTO_SKY_GAIN, {}),  # Auto: Params' defaults
+    )
+    for gain, fields in priors:
+        for pitch, expected in ((-25.0, 0.3), (30.0, 0.3 * gain)):
+            up = up_when_pitched(pitch)
+            params = Params(method="camera", intrinsics=INTRINSICS, up=up, **fields)
+            env = apply_table(lookup_table(W, H, box, params, "latlong", 256), plate)
+            d = texel_directions("latlong", env.shape[1])
+            straight_up = d @ np.array(up) > math.cos(math.radians(15))  # far above the frame
+            assert env[straight_up].mean() == pytest.approx(expected, rel=0.02), (pitch, gain)
 
 
 def _straight_up(plate, **fields):
