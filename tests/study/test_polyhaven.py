@@ -188,7 +188,7 @@ def test_the_pooled_table_pools_the_sets_and_the_unseen_ones():
     lines = pooled.pooled_table(runs).splitlines()
     assert lines[2].startswith("| the 16 scenes") and "| 2 | 2 | +0.00 (1.00) |" in lines[2]
     assert "| 1/2 (50 %) | 2/2 |" in lines[2]
-    unseen = next(line for line in lines if line.startswith("| under HDRIs nothing"))
+    unseen = next(line for line in lines if line.startswith("| forest, night and Poly Haven"))
     assert "| 3 | 3 | +2.00 (0.58) | +0.200 | 3/3 (100 %) |" in unseen  # 2, 1, 3 dB
     everything = next(line for line in lines if line.startswith("| all |"))
     assert "| 5 | 5 | +1.20 (0.66) |" in everything and "| 4/5 (80 %) | 5/5 |" in everything
