@@ -361,8 +361,9 @@ def prior_level(level_pixels: np.ndarray, bins: np.ndarray, energy: float = 0.0)
     float
     """
     pixels = level_pixels.reshape(-1, 3)
-    if shows_ground(bins):
-        return sky_level(pixels[ground_band(bins)], energy)
+    band = ground_band(bins)
+    if band.mean() >= MIN_GROUND_SHARE:
+        return sky_level(pixels[band], energy)
     return sky_level(pixels, energy) / SKY_GAINS["auto"]
 
 

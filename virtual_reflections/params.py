@@ -37,6 +37,11 @@ ROUGH_SKY_RATIOS = {
 }
 
 
+def _unit_roughness(roughness: float) -> float:
+    """A roughness clamped to 0..1 (NaN counts as 0)."""
+    return min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
+
+
 def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None) -> float:
     """The sky prior's gain for named surroundings, seen by a surface of a given roughness.
 
@@ -60,7 +65,7 @@ def sky_gain_for(kind: str, roughness: float = 0.0, custom: float | None = None)
     """
     kind = kind if kind in SKY_GAINS else "auto"
     knots = ((0.0, 1.0), *ROUGH_SKY_RATIOS[kind])
-    r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
+    r = _unit_roughness(roughness)
     xs = [k for k, _ in knots]
     logs = [math.log(v) for _, v in knots]
     base = SKY_GAINS[kind] if custom is None else float(custom)
@@ -93,7 +98,7 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
     if custom is not None or (kind != "auto" and kind in SKY_GAINS):  # world, unknown: Auto's
         gain = sky_gain_for(kind, roughness, custom)
         return {"sky_gain": gain, "sky_from_plate": 0.0, "sky_tint_share": 0.0}
-    r = min(max(float(roughness), 0.0), 1.0) if math.isfinite(roughness) else 0.0
+    r = _unit_roughness(roughness)
     plate = 1.0 - min(r / AUTO_SKY_ROUGHNESS, 1.0)
     gain = AUTO_SKY_GAIN**plate * sky_gain_for("auto", r) ** (1.0 - plate)
     return {

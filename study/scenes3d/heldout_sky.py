@@ -33,7 +33,7 @@ from virtual_reflections.imagefiles import read_rgba
 from virtual_reflections.methods import AUTO_SKY_GAIN, AUTO_SKY_TINT, SKY_GAINS
 from virtual_reflections.params import Params
 
-from ..evaluate.metrics import psnr, to_display
+from ..evaluate.metrics import psnr, ssim, to_display
 from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
 from . import scenes
 
@@ -158,6 +158,7 @@ def load(out, record) -> dict:
         "plate_mean": plate_mean,
         "base": psnr(to_display(m), to_display(t), k),
         "crop": (int(y0), int(y1), int(x0), int(x1)),  # of the full frame
+        "auto_sky": record.get("auto_sky"),  # (gain, tint) when rendered with Auto's sky
     }
 
 
@@ -286,38 +287,58 @@ def pick_under_floor(scores, floor=SAFE_FLOOR) -> int:
 def fit_auto(out, log=print) -> tuple:
     """Auto's sky (methods.AUTO_SKY_GAIN, AUTO_SKY_TINT) fitted on OUT's renders: the
     plate-mean family (`plate_sky`) held out by HDRI under SAFE_FLOOR, then fitted on every
-    scene; prints PSNR over the plate-mean world (mean, ahead, worst), FLIP and the upper
-    half's detail ratio, and the engine's constants beside the fit. Returns (gain, tint)."""
+    scene; prints PSNR over the plate-mean world (mean, ahead, worst), SSIM over it, FLIP and
+    the upper half's detail ratio, for the default as rendered and held out; for renders made
+    with Auto's sky from the plate, how far the study's prediction of them lies; and the
+    engine's constants beside the fit. Returns (gain, tint)."""
     data = [load(out, r) for r in read_records(out)]
+    truths = [to_display(d["truth"]) for d in data]
     grid = [(g, t) for g in AUTO_GAINS for t in AUTO_TINTS]
     scores = np.array(
-        [[psnr(to_display(plate_sky(d, *p)), to_display(d["truth"]), d["mask"]) - d["base"]
-          for p in grid] for d in data]
+        [[psnr(to_display(plate_sky(d, *p)), t, d["mask"]) - d["base"] for p in grid]
+         for d, t in zip(data, truths)]
     )  # fmt: skip
     hdris = np.array([d["hdri"] for d in data])
     held, chosen = loho_floor(scores, hdris)
-    default = [d["full"] for d in data]
-    held_images = [plate_sky(d, *grid[c]) for d, c in zip(data, chosen)]
     log(f"{len(data)} scenes, {len(set(hdris))} HDRIs; mirror PSNR over the plate mean")
-    for name, images in (("the default as rendered", default), ("held out", held_images)):
-        v = np.array(
-            [psnr(to_display(x), to_display(d["truth"]), d["mask"]) - d["base"]
-             for x, d in zip(images, data)]
-        )  # fmt: skip
-        f = [
-            flip_ldr(to_display(x), to_display(d["truth"]), d["mask"]) for x, d in zip(images, data)
-        ]
-        u = [
-            detail_ratio(to_display(x), to_display(d["truth"]), d["mask"], upper_half(d["mask"]))
-            for x, d in zip(images, data)
-        ]
-        log(f"{table_line(name, v)} FLIP {np.mean(f):.3f}, upper-half detail {np.nanmedian(u):.2f}")
+    rendered = [to_display(d["full"]) for d in data]
+    held_out = [to_display(plate_sky(d, *grid[c])) for d, c in zip(data, chosen)]
+    for name, images in (("the default as rendered", rendered), ("held out", held_out)):
+        log(summary_line(name, images, truths, data))
+    predicted = [
+        psnr(to_display(plate_sky(d, *d["auto_sky"])), t, d["mask"]) - psnr(x, t, d["mask"])
+        for d, t, x in zip(data, truths, rendered)
+        if d["auto_sky"]
+    ]
+    if predicted:
+        log(f"the study's prediction of the renders made with Auto's sky from the plate: within "
+            f"{np.max(np.abs(predicted)):.2f} dB a scene ({len(predicted)} scenes)")  # fmt: skip
     picked = sorted({(round(grid[c][0], 2), grid[c][1]) for c in chosen})
     gain, tint = grid[pick_under_floor(scores)]
     log(f"fitted per held-out HDRI: {picked}")
     log(f"fitted on every scene: gain {gain:.2f}, tint {tint:g} (the engine's: "
         f"{AUTO_SKY_GAIN:g}, {AUTO_SKY_TINT:g})")  # fmt: skip
     return float(gain), float(tint)
+
+
+def summary_line(name, images, truths, data) -> str:
+    """One row of `fit_auto`: display-space ``images`` against ``truths`` per scene of
+    ``data``: PSNR over the plate mean (`table_line`), SSIM over it, FLIP and the upper half's
+    median detail ratio."""
+    v = np.array([psnr(x, t, d["mask"]) - d["base"] for x, t, d in zip(images, truths, data)])
+    gain = [
+        ssim(x, t, d["mask"]) - ssim(to_display(d["mean"]), t, d["mask"])
+        for x, t, d in zip(images, truths, data)
+    ]
+    f = [flip_ldr(x, t, d["mask"]) for x, t, d in zip(images, truths, data)]
+    u = [
+        detail_ratio(x, t, d["mask"], upper_half(d["mask"]))
+        for x, t, d in zip(images, truths, data)
+    ]
+    return (
+        f"{table_line(name, v)} SSIM {np.mean(gain):+.3f}, FLIP {np.mean(f):.3f}, "
+        f"upper-half detail {np.nanmedian(u):.2f}"
+    )
 
 
 def table_line(name, v):
