@@ -49,18 +49,24 @@ def test_the_probe_is_read_in_blenders_layout():
     assert got[3].sum() == 0
 
 
-def test_the_map_splits_exactly_at_the_prior():
-    """Without the prior, plus the weight times the prior's level, is the map."""
-    rng = np.random.default_rng(5)
-    plate = (0.1 + 0.3 * rng.random((H, W, 3))).astype(np.float32)
-    params = Params(
+def ground_band_params(pitch):
+    """Camera View with the world's horizon and the ground band's neutral prior at 1.6 (the
+    prior these tests split; Auto's from the plate is split alike)."""
+    return Params(
         method="camera",
         intrinsics=INTRINSICS,
-        up=up_when_pitched(30),
+        up=up_when_pitched(pitch),
         sky_gain=1.6,
         sky_from_plate=0.0,
         sky_tint_share=0.0,
     )
+
+
+def test_the_map_splits_exactly_at_the_prior():
+    """Without the prior, plus the weight times the prior's level, is the map."""
+    rng = np.random.default_rng(5)
+    plate = (0.1 + 0.3 * rng.random((H, W, 3))).astype(np.float32)
+    params = ground_band_params(30)
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     env = apply_table(table, plate)
     without, weight = prior_parts(table, plate)
@@ -94,14 +100,7 @@ def test_the_probe_fills_the_unseen_sky_along_the_right_directions():
     img[h // 8 : h // 2, 3 * w // 4 - 16 : 3 * w // 4 + 16] = (2.0, 0.0, 0.0)  # toward -Y
     probe = Probe(img, pitched(30))
     plate = np.full((H, W, 3), 0.2, np.float32)
-    params = Params(
-        method="camera",
-        intrinsics=INTRINSICS,
-        up=up_when_pitched(30),
-        sky_gain=1.6,
-        sky_from_plate=0.0,
-        sky_tint_share=0.0,
-    )
+    params = ground_band_params(30)
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     without, weight = prior_parts(table, plate)
     env = with_probe(without, weight, probe.latlong(256))
@@ -147,14 +146,7 @@ def test_the_whole_unseen_sky_is_the_prior():
     shows stays the plate's, and below the horizon the prior has no part."""
     rng = np.random.default_rng(2)
     plate = (0.2 + 0.2 * rng.random((H, W, 3))).astype(np.float32)
-    params = Params(
-        method="camera",
-        intrinsics=INTRINSICS,
-        up=up_when_pitched(0),
-        sky_gain=1.6,
-        sky_from_plate=0.0,
-        sky_tint_share=0.0,
-    )
+    params = ground_band_params(0)
     table = lookup_table(W, H, (60, 30, 100, 60), params, "latlong", 256)
     d = texel_directions("latlong", 256)
     behind = (d[..., 2] < -0.9) & (d[..., 1] > math.sin(math.radians(3)))
