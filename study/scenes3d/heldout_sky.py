@@ -258,7 +258,8 @@ def loho(scores, groups, columns, safe=False):
 def plate_sky(d, gain, tint):
     """The scene's mirror (linear crop) with Auto's sky from the plate: ``gain`` times the
     plate mean's luminance, its hue ``tint`` of the way from grey to the plate mean's."""
-    target = gain * lum(d["plate_mean"]) * chroma(d, d["plate_mean"], tint)
+    hue = d["plate_mean"] / max(lum(d["plate_mean"]), 1e-6)
+    target = gain * lum(d["plate_mean"]) * ((1 - tint) + tint * hue)  # from grey, as the engine
     return d["dark"] + (target / d["today"]) * d["part"]
 
 
@@ -289,7 +290,8 @@ def fit_auto(out, log=print) -> tuple:
     plate-mean family (`plate_sky`) held out by HDRI under SAFE_FLOOR, then fitted on every
     scene; prints PSNR over the plate-mean world (mean, ahead, worst), SSIM over it, FLIP and
     the upper half's detail ratio, for the default as rendered and held out; for renders made
-    with Auto's sky from the plate, how far the study's prediction of them lies; and the
+    with Auto's sky from the plate, how far their recorded recipe (`plate_sky`) lies from them;
+    and the
     engine's constants beside the fit. Returns (gain, tint)."""
     data = [load(out, r) for r in read_records(out)]
     truths = [to_display(d["truth"]) for d in data]
@@ -311,7 +313,7 @@ def fit_auto(out, log=print) -> tuple:
         if d["auto_sky"]
     ]
     if predicted:
-        log(f"the study's prediction of the renders made with Auto's sky from the plate: within "
+        log(f"the recorded recipe of Auto's sky against its renders: within "
             f"{np.max(np.abs(predicted)):.2f} dB a scene ({len(predicted)} scenes)")  # fmt: skip
     picked = sorted({(round(grid[c][0], 2), grid[c][1]) for c in chosen})
     gain, tint = grid[pick_under_floor(scores)]

@@ -142,3 +142,20 @@ def test_the_floor_fit_takes_the_best_mean_whose_worst_scene_stays_above_the_flo
     # without c's -3 dB scene, column 0 is safe on a and b: c is scored with it
     assert list(chosen) == [1, 1, 0]
     np.testing.assert_allclose(held, [1.5, 1.0, -3.0])
+
+
+def test_plate_sky_takes_its_hue_from_grey_whatever_the_rendered_prior():
+    """`plate_sky` sets the prior's pixels to gain x the plate mean's luminance, its hue `tint`
+    of the way from grey (the engine's `fill.sky_prior`), whether the render's own prior was
+    neutral (the earlier Auto) or already the plate's colour: a render made with the recipe
+    comes back unchanged."""
+    from study.scenes3d import heldout_sky
+
+    plate_mean = np.array([0.3, 0.2, 0.1])
+    level = float(plate_mean @ heldout_sky.LUMA)
+    weight = np.array([[0.0], [0.5], [1.0]])
+    expected = 1.4 * level * (0.25 + 0.75 * plate_mean / level)
+    for today in (np.full(3, 0.2), expected):
+        d = {"plate_mean": plate_mean, "today": today, "dark": np.zeros((3, 3)),
+             "part": weight * today}  # fmt: skip
+        np.testing.assert_allclose(heldout_sky.plate_sky(d, 1.4, 0.75), weight * expected)
