@@ -287,6 +287,12 @@ class World:
         (fill.prior_level); between, the two levels blended geometrically.
     sky_tint_share : float
         How far the prior's hue goes from grey to the plate's mean hue, 0..1.
+    sky_texture : float
+        With `up`: how much of the plate's own texture the unseen sky takes, 0..1 (0: the
+        prior's flat colour). Each sky texel is the prior times exp(k (t - mean t)), t the
+        log-luminance of the plate at the texel's direction folded into the plate's view,
+        clipped to +-SKY_TEXTURE_CLIP about its mean (sky_texture.py): the skyline the photo
+        shows continues around the camera, its log-average the prior's.
     """
 
     up: tuple | None = None
@@ -294,6 +300,7 @@ class World:
     sky_tint: tuple = (1.0, 1.0, 1.0)
     sky_from_plate: float = 1.0
     sky_tint_share: float = AUTO_SKY_TINT
+    sky_texture: float = 0.0
 
     def __post_init__(self):
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):
@@ -302,6 +309,8 @@ class World:
             raise ValueError(f"sky_from_plate must be 0..1, got {self.sky_from_plate}")
         if not (math.isfinite(self.sky_tint_share) and 0.0 <= self.sky_tint_share <= 1.0):
             raise ValueError(f"sky_tint_share must be 0..1, got {self.sky_tint_share}")
+        if not (math.isfinite(self.sky_texture) and 0.0 <= self.sky_texture <= 1.0):
+            raise ValueError(f"sky_texture must be 0..1, got {self.sky_texture}")
         tint = tuple(float(v) for v in self.sky_tint)
         object.__setattr__(self, "sky_tint", tint)
         if len(tint) != 3 or not all(math.isfinite(v) and v >= 0 for v in tint) or max(tint) <= 0:
