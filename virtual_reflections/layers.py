@@ -25,6 +25,7 @@ from .extension import apply as apply_extension
 from .fill import FILL_BINS, fill_lookup, fill_profile, fill_values
 from .mipmap import level_view
 from .parallel import CHUNK, for_blocks
+from .sky_texture import modulate
 from .supersample import Supersample
 from .supersample import gather as gather_supersample
 from .taps import put_rows, weighted_sum
@@ -401,6 +402,59 @@ class EdgeExtension:
         """
         rest = self.extension.without(drop)
         return None if rest is None else EdgeExtension(rest)
+
+
+@dataclass(frozen=True, eq=False)
+class SkyTexture:
+    """The camera view's unseen sky given the plate's texture (sky_texture.py), over the
+    prior the fill wrote there.
+
+    Attributes
+    ----------
+    extension : extension.Extension
+        The sky texels' samples of the pyramid, read without a fade.
+    weight : (n,) float32 ndarray
+        Their solid angles in its order, summing to 1 (the log-average's weights).
+    contrast : float
+        Params.sky_texture.
+    """
+
+    extension: Extension
+    weight: np.ndarray
+    contrast: float
+    plate_level0 = False
+
+    def write(self, frame: Frame, out: np.ndarray) -> None:
+        """The prior times the plate's texture (`Layer.write`).
+
+        Parameters
+        ----------
+        frame : Frame
+        out : (h w, 3) float32 ndarray
+        """
+        modulate(
+            self.extension, self.weight, self.contrast, frame.pyramid, frame.shapes,
+            frame.offsets, out,
+        )  # fmt: skip
+
+    def without(self, drop: np.ndarray) -> SkyTexture | None:
+        """This texture without the texels `drop` (`Layer.without`).
+
+        Parameters
+        ----------
+        drop : (h w,) bool ndarray
+
+        Returns
+        -------
+        SkyTexture or None
+        """
+        keep = ~drop[self.extension.texels]
+        rest = self.extension.without(drop)
+        if rest is None:
+            return None
+        weight = self.weight[keep] / self.weight[keep].sum()
+        weight.flags.writeable = False
+        return SkyTexture(rest, weight, self.contrast)
 
 
 @dataclass(frozen=True, eq=False)

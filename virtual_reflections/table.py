@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import camera_view, ground, seen_texels
+from . import camera_view, ground, seen_texels, sky_texture
 from .cache import bounded
 from .extension import extension
 from .fill import (
@@ -51,6 +51,7 @@ from .layers import (
     FillProfile,
     FillSteps,
     Layer,
+    SkyTexture,
     Supersamples,
     Taps,
     TrilinearTexels,
@@ -222,7 +223,10 @@ def _build_camera_view(
     lod_map = _lod(layout, size, position, band, cols).ravel()
     near_lod = np.clip(np.maximum(lod_map[near], blur), 0.0, top)
     level_fill = fill_level(shapes) if filled else None
-    first, levels = _camera_levels(top, seen_level, near_lod, level_fill, level0)
+    textured = filled and params.world.up is not None and params.world.sky_texture > 0.0
+    sky_lod = sky_texture.sky_lod(layout, size, intrinsics, top) if textured else None
+    reads = near_lod if sky_lod is None else np.append(near_lod, np.float32(sky_lod))
+    first, levels = _camera_levels(top, seen_level, reads, level_fill, level0)
     layers, fill = [], None
     if filled:  # the fill, written over every texel first
         base = int(level_offsets(shapes[:levels], first)[-1])
@@ -230,6 +234,8 @@ def _build_camera_view(
             layout, size, shapes, level_fill, base, intrinsics, width, params, directions
         )
         layers.append(coat)
+    if textured:  # the unseen sky given the plate's texture, over the fill's prior
+        layers += _sky_texture(layout, size, seen, directions, seg, intrinsics, params, sky_lod)
     # Near the plate's view: the blurred edge extension (a trilinear sample) faded into the
     # fill written before it (extension.py).
     px, py = position[..., 0].ravel()[near], position[..., 1].ravel()[near]
@@ -243,6 +249,23 @@ def _build_camera_view(
         layers.append(Supersamples(supersamples(seen, positions, seen_level, shapes, offsets)))
     shape = map_shape(layout, size)
     return LookupTable(seg, layout, size, shape, levels, first, tuple(layers), fill)
+
+
+def _sky_texture(layout, size, seen, directions, seg, intrinsics, params, lod) -> list:
+    """[the SkyTexture layer] of the texels above the world's horizon the plate does not see
+    (sky_texture.py), or [] when there are none."""
+    up = np.asarray(params.world.up, np.float64)
+    if directions is None:  # a lat-long: its texels' directions, once
+        directions = directions_at(layout, size, np.arange(size * (size // 2)), 0.0, 0.0)
+    sky = (directions @ (up / np.linalg.norm(up))) > 0.0
+    sky[seen] = False
+    texels = np.flatnonzero(sky)
+    top = len(level_shapes(seg.height, seg.width)) - 1
+    built = sky_texture.sky_texture(
+        texels, directions[texels], seg.width, seg.height, intrinsics, params.world.up, lod,
+        top, layout, size,
+    )  # fmt: skip
+    return [] if built is None else [SkyTexture(*built, params.world.sky_texture)]
 
 
 def _seen_and_near(layout, size, width, height, intrinsics, fade, clamped):

@@ -1,0 +1,137 @@
+"""The unseen sky given the plate's own texture (`Params.sky_texture`; docs/scenes3d.md, "The
+unseen sky's texture").
+
+Above the world's horizon, where the plate does not see, the camera view's fill is one flat
+colour per elevation: the sky prior (fill.py). With a texture share k > 0 each such texel
+takes the plate's structure instead: its direction is folded into the plate's view (its
+azimuth about the world's up reflected back and forth across the azimuths the plate shows at
+or above the horizon, so the skyline the photo shows continues around the camera, mirrored at
+each edge, without a seam; its elevation clamped to the plate's), read there from the mip
+pyramid at the texel's own angular size, and the prior is multiplied by exp(k (t - mean t)),
+t the log-luminance of that sample (each channel clipped at 1: a sun counts as white), the
+mean weighted by solid angle and the difference clipped to +-SKY_TEXTURE_CLIP. The sky's
+log-average stays the prior's; k sets the contrast (1: the plate's own).
+
+`sky_texture` builds the layer's geometry once per table (an `Extension` of the sky texels,
+read without a fade, and their solid-angle weights); `modulate` applies it to a frame's map.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .camera_view import clamp_to_view
+from .extension import Extension, extension
+from .layouts import directions_at
+from .taps import put_rows, take_rows
+from .trilinear import gather_runs
+
+SKY_TEXTURE_CLIP = 1.0  # natural-log units: a texel at most e times brighter or darker
+GRID = 33  # plate positions a side sampled for the azimuths the plate shows
+MIN_ABOVE = 0.05  # below this share of the plate above the horizon, its whole width counts
+LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def horizon_frame(up) -> tuple:
+    """(up, forward, left): unit camera-frame vectors, forward the camera's axis (+Z) laid
+    on the world's horizon, left = up x forward (the plate's left, +X, for a level camera)."""
+    u = np.asarray(up, np.float64)
+    u = u / np.linalg.norm(u)
+    for axis in ((0.0, 0.0, 1.0), (0.0, -1.0, 0.0)):  # looking straight up or down: its bottom
+        f = np.asarray(axis) - np.dot(axis, u) * u
+        if np.linalg.norm(f) > 1e-6:
+            break
+    f = f / np.linalg.norm(f)
+    return u, f, np.cross(u, f)
+
+
+def angles(directions, frame) -> tuple:
+    """(elevation, azimuth) in radians of camera-frame `directions` (n, 3) in `frame`
+    (`horizon_frame`): azimuth 0 forward, positive to the left."""
+    u, f, left = frame
+    d = np.asarray(directions, np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-30)
+    return np.arcsin(np.clip(d @ u, -1.0, 1.0)), np.arctan2(d @ left, d @ f)
+
+
+def view_azimuths(width: int, height: int, intrinsics, frame) -> tuple:
+    """(lo, hi): the azimuths (radians) the plate shows at or above the world's horizon (its
+    whole width when under MIN_ABOVE of it is above)."""
+    fx, fy, cx, cy = intrinsics
+    px, py = np.meshgrid(np.linspace(0, width, GRID), np.linspace(0, height, GRID))
+    rays = np.stack([(cx - px) / fx, (cy - py) / fy, np.ones_like(px)], -1).reshape(-1, 3)
+    elevation, azimuth = angles(rays, frame)
+    above = elevation >= 0.0
+    if above.mean() < MIN_ABOVE:
+        above[:] = True
+    return float(azimuth[above].min()), float(azimuth[above].max())
+
+
+def fold(azimuth, lo: float, hi: float):
+    """`azimuth` reflected back and forth into [lo, hi] (a triangle wave of period 2 (hi - lo))."""
+    width = max(hi - lo, 1e-6)
+    t = np.mod(np.asarray(azimuth) - lo, 2.0 * width)
+    return lo + np.where(t > width, 2.0 * width - t, t)
+
+
+def folded(directions, width: int, height: int, intrinsics, up) -> np.ndarray:
+    """Camera-frame `directions` (n, 3) with their azimuth folded into the plate's view
+    (`view_azimuths`, `fold`), their elevation kept: (n, 3) float32."""
+    frame = horizon_frame(up)
+    u, f, left = frame
+    elevation, azimuth = angles(directions, frame)
+    azimuth = fold(azimuth, *view_azimuths(width, height, intrinsics, frame))
+    ground = np.cos(elevation)[:, None]
+    out = ground * (np.cos(azimuth)[:, None] * f + np.sin(azimuth)[:, None] * left)
+    return (out + np.sin(elevation)[:, None] * u).astype(np.float32)
+
+
+def solid_angles(layout: str, size: int, texels) -> np.ndarray:
+    """(n,) float64: each texel's solid angle up to one factor (a lat-long's cos(latitude), a
+    cube's 1 / (1 + s^2 + t^2)^1.5 = its largest direction component cubed)."""
+    d = directions_at(layout, size, np.asarray(texels, np.int64), 0.0, 0.0)
+    if layout == "latlong":
+        return np.sqrt(np.maximum(1.0 - d[:, 1] ** 2, 0.0))
+    return np.abs(d).max(1) ** 3
+
+
+def sky_lod(layout: str, size: int, intrinsics, top: int) -> float:
+    """The mip level the sky texels read: a texel's angular size at the map's densest (a
+    lat-long's equator, a face's centre) in plate pixels, as log2, in [0, top]."""
+    angle = (2.0 * math.pi if layout == "latlong" else 0.5 * math.pi) / size
+    return min(math.log2(max(angle * intrinsics[0], 1.0)), float(top))
+
+
+def sky_texture(texels, directions, width, height, intrinsics, up, lod, top, layout, size):
+    """The layer's geometry for the sky `texels` (n,) with camera-frame `directions` (n, 3),
+    read at mip level `lod` (`sky_lod`; the pyramid's last level `top`): (their `Extension`,
+    solid-angle weights (n,) float32 in its order, summing to 1), or None."""
+    texels = np.asarray(texels, np.int64)
+    if texels.size == 0:
+        return None
+    turned = folded(directions, width, height, intrinsics, up)
+    position, _ = clamp_to_view(turned, width, height, intrinsics)
+    lod = np.full(texels.size, lod, np.float32)
+    ext = extension(texels, position[:, 0], position[:, 1], lod, top)
+    weight = solid_angles(layout, size, ext.texels)
+    weight = (weight / weight.sum()).astype(np.float32)
+    weight.flags.writeable = False
+    return ext, weight
+
+
+def modulate(ext: Extension, weight, contrast: float, source, shapes, offsets, out) -> None:
+    """out[texels] (the prior written there) times exp(contrast (t - mean t)), t the
+    log-luminance of each texel's sample of the pyramid `source` (module docstring)."""
+    values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
+    rows = np.concatenate(
+        [values[start : start + n] for start, n in zip(ext.samples.starts, ext.counts)]
+    )
+    t = np.log(np.maximum(np.minimum(rows, 1.0) @ LUMA, 1e-3))
+    t -= float(weight @ t)
+    np.clip(t, -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP, out=t)
+    factor = np.exp(np.float32(contrast) * t).astype(np.float32)
+    prior = take_rows(out, ext.texels)
+    prior *= factor[:, None]
+    put_rows(out, ext.texels, prior)
