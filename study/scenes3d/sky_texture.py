@@ -6,8 +6,10 @@ the plate's view: its elevation clamped to the elevations the plate shows at or 
 horizon, its azimuth reflected back and forth across the plate's azimuths (so the skyline the
 plate shows continues around the camera, mirrored at each edge, without a seam). The plate
 pixel nearest that direction lends its log-luminance (display: each pixel clipped at 1); the
-sky's pixels are Auto's colour (`heldout_sky.plate_sky`) times exp(k (t - mean t)): their
-log-average stays the estimate's, k sets the contrast (0: Auto's flat sky; 1: the plate's own).
+sky's pixels are Auto's colour (`heldout_sky.plate_sky`) times exp(k (t - mean t)), the
+difference clipped at the engine's SKY_TEXTURE_CLIP: their log-average stays the estimate's, k
+sets the contrast (0: Auto's flat sky; 1: the plate's own). The engine's `Params.sky_texture`
+(virtual_reflections/sky_texture.py) does the same on the map.
 
 Scored from `heldout_sky render`'s renders (the prior's part is linear in its colour, per
 pixel too); k is chosen leave-one-HDRI-out under `heldout_sky.SAFE_FLOOR`, by PSNR and by FLIP.
@@ -25,6 +27,7 @@ import numpy as np
 
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
+from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP
 
 from ..evaluate.metrics import psnr, ssim, to_display
 from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
@@ -86,13 +89,15 @@ def attach(out, d) -> None:
 
 def textured(d, gain, tint, k):
     """The scene's mirror (linear crop) with Auto's sky from the plate (`plate_sky`'s gain and
-    tint) given the plate's texture at contrast ``k``, its log-average kept."""
+    tint) given the plate's texture at contrast ``k``, its log-average kept (the difference
+    clipped at SKY_TEXTURE_CLIP)."""
     hue = d["plate_mean"] / max(hs.lum(d["plate_mean"]), 1e-6)
     target = gain * hs.lum(d["plate_mean"]) * ((1 - tint) + tint * hue)
     colour = np.broadcast_to(target, d["part"].shape).copy()
     t = d["texture"]
     if k and t.size:
-        colour[d["sky"]] = target * np.exp(k * (t - t.mean()))[:, None]
+        spread = np.clip(t - t.mean(), -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP)
+        colour[d["sky"]] = target * np.exp(k * spread)[:, None]
     return d["dark"] + colour / d["today"] * d["part"]
 
 
