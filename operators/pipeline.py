@@ -84,7 +84,8 @@ def params(settings, intrinsics=None) -> Params:
     pixels select the camera-view method when Camera View or Camera View + Ground is chosen
     (the ground is added per map: `map_params`); without them (an orthographic camera, the
     segmentation previews) it is the paper's. The sky prior's gain (used by Camera View +
-    Ground) is the one for the surroundings the artist named (``settings.surroundings``)."""
+    Ground) is the one for the surroundings the artist named (``settings.surroundings``), its
+    texture the artist's Sky Texture."""
     n = 0 if settings.front == "CONTINUOUS" else 4 * max(1, round(settings.triangles / 4))
     method = methods.view_method(settings.method, perspective=intrinsics is not None)
     camera = methods.uses_camera(method)
@@ -96,6 +97,7 @@ def params(settings, intrinsics=None) -> Params:
         intrinsics=tuple(intrinsics) if camera else None,
         **scene_sky_prior(settings),
         sky_tint=scene_sky_tint(settings),
+        sky_texture=scene_sky_texture(settings),
     )
 
 
@@ -112,6 +114,13 @@ def contact_shadow(settings) -> float:
     """The contact shadow's strength the scene's ``settings`` ask for (0..1), rounded so that
     a slider's float noise builds no new table or node tree."""
     return round(float(settings.contact_shadow), 4)
+
+
+def scene_sky_texture(settings) -> float:
+    """How much of the plate's own texture the unseen sky takes (Params.sky_texture, 0..1)
+    the scene's ``settings`` ask for, rounded so that a slider's float noise builds no new
+    table. Under World HDRI the on-set HDRI replaces the textured sky where it can be read."""
+    return round(float(settings.sky_texture), 4)
 
 
 def scene_sky_tint(settings) -> tuple:

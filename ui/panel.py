@@ -26,20 +26,26 @@ def _wrapped(layout, text, context, icon="NONE"):
 def _draw_surroundings(col, settings, context):
     """What stands around the shot (Camera View + Ground): in the main panel, as what sets the
     unseen sky's brightness matters more than any other setting (docs/scenes3d.md, "Surroundings
-    named by the artist"); Custom's Sky Brightness and Sky Tint; the World HDRI's source;
-    under Auto, a hint when the world holds an HDRI (World HDRI would read it) or else when the
-    camera sees no sky."""
+    named by the artist"); Custom's Sky Brightness and Sky Tint; the Sky Texture, greyed out
+    while World HDRI reads an HDRI (the HDRI is the sky it would texture); the World HDRI's
+    source; under Auto, a hint when the world holds an HDRI (World HDRI would read it) or else
+    when the camera sees no sky."""
     col.prop(settings, "surroundings")
     if settings.surroundings == "CUSTOM":  # the artist's own sky: its brightness and colour
         col.prop(settings, "sky_brightness")
         col.prop(settings, "sky_tint")
+    image = problem = world = None
+    if settings.surroundings in ("WORLD", "AUTO"):
+        world = world_probe.user_world(context.scene)
+        try:  # the one HDRI World HDRI reads from the artist's world
+            image, problem = world_probe.environment_node(world).image.name, None
+        except ValueError as exc:
+            image, problem = None, str(exc)
+    row = col.row()
+    row.active = not (settings.surroundings == "WORLD" and image is not None)
+    row.prop(settings, "sky_texture")
     if settings.surroundings not in ("WORLD", "AUTO"):
         return
-    world = world_probe.user_world(context.scene)
-    try:  # the one HDRI World HDRI reads from the artist's world
-        image, problem = world_probe.environment_node(world).image.name, None
-    except ValueError as exc:
-        image, problem = None, str(exc)
     if settings.surroundings == "WORLD":
         if image is not None:
             _wrapped(col, f"Reads '{image}' from world '{world.name}'", context)

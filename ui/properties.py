@@ -120,6 +120,18 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
         "Brightness): white, neutral grey as under Open Sky and Enclosed; a blue for an open "
         "sky, an orange for a sunset",
     )
+    sky_texture: FloatProperty(
+        update=_shaping_changed,
+        name="Sky Texture",
+        default=0.0,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+        description="How much of the photo's own texture the unseen sky in the reflection "
+        "takes (Camera View + Ground; 0: a flat colour estimated from the photo): the skyline "
+        "the photo shows continues around the camera, its average brightness still the one "
+        "the Surroundings set (World HDRI: the HDRI is that sky)",
+    )
     front: EnumProperty(
         name="Front Face",
         items=FRONT_ITEMS,

@@ -220,3 +220,8 @@ def test_settings_that_shape_the_map_are_followed(live, shot):
     assert live.flush(scene, full=True).done == ["VR Map Ball"]
     scene.virtual_reflections.contact_shadow = 0.5  # the ground the objects darken
     assert live.pending() == {"Ball"}
+    live.flush(scene, full=True)  # (the material reads the ground: perhaps the same map)
+    assert live.pending() == set()
+    scene.virtual_reflections.sky_texture = 0.5  # the unseen sky takes the plate's texture
+    assert live.pending() == {"Ball"}
+    assert live.flush(scene, full=True).done == ["VR Map Ball"]

@@ -244,14 +244,20 @@ def test_the_probe_is_the_world_cycles_renders(addon):
 
 
 def test_the_panel_names_the_hdri_it_reads(addon):
+    """The panel names the HDRI World HDRI reads, or says Auto is used; the Sky Texture is
+    greyed out while an HDRI is read (the HDRI is the sky), not while Auto stands in."""
     scene, _ = make_shot()
     scene.virtual_reflections.surroundings = "WORLD"
     scene.world = bpy.data.worlds.new("Plain")
-    labels = " ".join(draw_main_panel(scene).labels)
+    drawn = draw_main_panel(scene)
+    labels = " ".join(drawn.labels)
     assert "world 'Plain' has no Environment Texture" in labels and "Auto is used" in labels
+    assert "sky_texture" in drawn.props and "sky_texture" not in drawn.inactive
     scene.world = world_with(hdri("Set Panorama"))
-    labels = " ".join(draw_main_panel(scene).labels)
+    drawn = draw_main_panel(scene)
+    labels = " ".join(drawn.labels)
     assert "Reads 'Set Panorama' from world 'Set HDRI'" in labels, labels
+    assert drawn.inactive == ["sky_texture"]
 
 
 def test_live_update_follows_the_world_being_turned(addon):
