@@ -42,6 +42,7 @@ SUFFIXES = ("_render", "_composite")
 FLOAT_RANGES = {
     "sky_brightness": (0.0, MAX_SKY_GAIN),
     "contact_shadow": (0.0, 1.0),
+    "sky_texture": (0.0, 1.0),
     "smoothing": (0.0, MAX_SMOOTHING),
 }
 
@@ -179,6 +180,15 @@ class BatchOptions:
         help="for --method ground, how much the objects darken the ground they reflect around "
         "them: 1 the share of the sky they hide, 0 none (a plate that already shows their "
         "shadow); default: the shot's setting",
+        type=float,
+        metavar="K",
+    )
+    sky_texture: float | None = _option(
+        help="for --method ground, how much of the plate's own texture the unseen sky takes, "
+        "0..1 (0: a flat colour estimated from the plate; the skyline the plate shows "
+        "continues around the camera, its average brightness still the --surroundings' "
+        "estimate; not used where --surroundings world reads an HDRI); default: the shot's "
+        "setting",
         type=float,
         metavar="K",
     )

@@ -28,7 +28,7 @@ from ...virtual_reflections.atomic_files import (
 from ...virtual_reflections.frames import is_movie_path, is_pattern, parse_frames, pattern_path
 from ...virtual_reflections.imagefiles import check_complete, write_rgba
 from ...virtual_reflections.movies import frames_text, whole_frames
-from .. import compositor, generate, interreflect, sequence
+from .. import compositor, generate, interreflect, pipeline, sequence
 from ..scene import plate
 from ..scene.composite import over, resize_nearest
 from . import record
@@ -269,6 +269,9 @@ def _run_inputs(scene, options, objects, size, use_passes):
     if reflections.get("surroundings") == "CUSTOM":  # only then do they shape the maps
         reflections["sky_brightness"] = settings.sky_brightness
         reflections["sky_tint"] = [round(v, 6) for v in settings.sky_tint]
+    texture = pipeline.scene_sky_texture(settings)
+    if texture > 0:  # off (the default) it leaves the records as they were
+        reflections["sky_texture"] = texture
     reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
     reflections["ground_object"] = ground.name if ground is not None else None
     reflections["objects"] = sorted(o.name for o in objects)

@@ -85,6 +85,8 @@ def configure(scene, options: BatchOptions):
         settings.surroundings = options.surroundings.upper()
     if options.contact_shadow is not None:
         settings.contact_shadow = options.contact_shadow
+    if options.sky_texture is not None:
+        settings.sky_texture = options.sky_texture
     if options.sky_brightness is not None:  # the artist's own sky: Surroundings Custom
         settings.surroundings = "CUSTOM"
         settings.sky_brightness = options.sky_brightness

@@ -143,6 +143,8 @@ def test_frozen(batch_options):
         ({"contact_shadow": 1.5}, "--contact-shadow: expected a number from 0 to 1, not 1.5"),
         ({"contact_shadow": "half"}, "--contact-shadow: expected a number from 0 to 1"),
         ({"sky_brightness": -2}, "--sky-brightness: expected a number from 0 to 100, not -2"),
+        ({"sky_texture": 2}, "--sky-texture: expected a number from 0 to 1, not 2"),
+        ({"sky_texture": -0.5}, "--sky-texture: expected a number from 0 to 1, not -0.5"),
         ({"combine": "ADD"}, "--combine must be REPLACE, MODULATE, MIX or WORLD, not 'ADD'"),
         ({"method": "CAMERA"}, "--method must be ground, camera or paper"),
         ({"engine": "WORKBENCH"}, "--engine must be CYCLES or EEVEE"),
@@ -243,6 +245,19 @@ def test_the_sky_tint_is_three_numbers(render_shot, capsys):
         assert stop.value.code == 2
         err = capsys.readouterr().err.strip()
         assert "expected R,G,B (three numbers)" in err and "\n" not in err
+
+
+def test_the_sky_texture_is_a_number_from_0_to_1(batch_options, render_shot, capsys):
+    """--sky-texture K: parsed as a number; out of 0..1, one line on stderr and exit code 2
+    before the shot is opened."""
+    namespace = render_shot.parse([*BASE, "--sky-texture", "0.5"])
+    assert batch_options.BatchOptions.from_namespace(namespace).sky_texture == 0.5
+    assert render_shot.parse(BASE).sky_texture is None  # not given: the shot's own
+    capsys.readouterr()
+    assert render_shot.main([*BASE, "--sky-texture", "2"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "render_shot: error: --sky-texture: expected a number from 0 to 1, not 2.0"
+    ]
 
 
 def test_the_parser_is_built_from_the_options_definitions(batch_options, render_shot):

@@ -87,10 +87,16 @@ def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
     record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
     assert record["inputs"]["reflections"]["surroundings"] == "CUSTOM"
     assert record["inputs"]["reflections"]["sky_brightness"] == 2.5
+    # The Sky Texture: rendered again; recorded when on (off, the records are as before).
+    textured = run(*common, "--plate", plate_b, "--combine", "MIX", "--sky-texture", 0.5)
+    assert textured.returncode == 0, textured.stderr[-2000:]
+    assert statuses(out) == [("rendered", "made with another reflections")] * 2
+    record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
+    assert record["inputs"]["reflections"]["sky_texture"] == 0.5
     named = run(*common, "--plate", plate_b, "--combine", "MIX", "--surroundings", "auto")
     assert named.returncode == 0, named.stderr[-2000:]
     record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
-    assert "sky_brightness" not in record["inputs"]["reflections"]
+    assert not {"sky_brightness", "sky_texture"} & set(record["inputs"]["reflections"])
 
     # The plate file changed in place (same name, new pixels): rendered again.
     plate_file = pathlib.Path(plate_b.replace("####", "0002"))

@@ -212,20 +212,94 @@ def test_the_batch_option_sets_the_sky_brightness(addon):
             options.BatchOptions(plate="p.exr", out="o", sky_brightness=bad)
 
 
-class _Layout:
-    """Records what a panel draws: the properties and the labels (every other layout call
-    draws nothing here)."""
+def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
+    """Sky Texture (0..1, default 0: the flat sky prior) is the Params.sky_texture of every
+    map Generate builds, under each Surroundings kind that uses the prior and for a rough
+    surface's map as for a mirror's, rounded so that a slider's float noise builds no new
+    table; the panel shows it beside the Surroundings."""
+    pipeline = addon_part("operators.pipeline")
+    scene, ball = make_shot()
+    settings = scene.virtual_reflections
+    built = []
+    map_table = pipeline.map_table
 
-    def __init__(self):
-        self.props, self.labels = [], []
+    def recording(plate_shape, box, map_params, *args, **kwargs):
+        built.append(map_params)
+        return map_table(plate_shape, box, map_params, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "map_table", recording)
+
+    def textures():
+        built.clear()
+        up_and_ahead(scene, ball)
+        assert built and all(p.method == "ground" for p in built), built
+        return {p.world.sky_texture for p in built}
+
+    assert settings.sky_texture == 0.0
+    assert textures() == {0.0}
+    settings.sky_texture = 0.5
+    for kind in ("AUTO", "OPEN", "ENCLOSED", "CUSTOM"):
+        settings.surroundings = kind
+        assert textures() == {0.5}, kind
+        drawn = draw_main_panel(scene)
+        assert "sky_texture" in drawn.props and "sky_texture" not in drawn.inactive, kind
+    ball.data.materials.append(rough_material("Rough", 0.35))
+    settings.combine = "MIX"  # a rough surface's map: its own, brighter prior, the same texture
+    assert textures() == {0.5}
+    settings.sky_texture = 0.5 + 1e-7  # a slider's float noise
+    assert settings.sky_texture != 0.5
+    intrinsics = (100.0, 100.0, 80.0, 45.0)
+    assert pipeline.params(settings, intrinsics).world.sky_texture == 0.5
+    settings.sky_texture = 0.0
+    assert pipeline.params(settings, intrinsics).world.sky_texture == 0.0
+
+
+def test_the_batch_option_sets_the_sky_texture(addon):
+    """--sky-texture K sets the shot's Sky Texture under any Surroundings; without it the
+    shot's own stays; out of 0..1 it is refused in one line."""
+    options = addon_part("operators.batch.options")
+    render = addon_part("operators.batch.render")
+    scene, _ = make_shot()
+    settings = scene.virtual_reflections
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", sky_texture=0.5))
+    assert settings.sky_texture == pytest.approx(0.5) and settings.surroundings == "AUTO"
+    render.configure(scene, options.BatchOptions(plate="p.exr", out="o", surroundings="open"))
+    assert settings.sky_texture == pytest.approx(0.5)  # not given: the shot's own
+    render.configure(
+        scene, options.BatchOptions(plate="p.exr", out="o", surroundings="open", sky_texture=0)
+    )
+    assert (settings.surroundings, settings.sky_texture) == ("OPEN", 0.0)
+    for bad in (-0.1, 2, float("nan"), "some"):
+        with pytest.raises(ValueError) as refused:
+            options.BatchOptions(plate="p.exr", out="o", sky_texture=bad)
+        assert "--sky-texture: expected a number from 0 to 1" in str(refused.value)
+        assert "\n" not in str(refused.value)
+
+
+class _Layout:
+    """Records what a panel draws: the properties, those of them greyed out (drawn in a
+    layout, or a layout within it, whose ``active`` is off) and the labels (every other
+    layout call draws nothing here)."""
+
+    def __init__(self, parent=None):
+        self.parent, self.active = parent, True
+        if parent is None:
+            self.props, self.inactive, self.labels = [], [], []
+        else:
+            self.props, self.inactive, self.labels = parent.props, parent.inactive, parent.labels
 
     def column(self, **_kw):
-        return self
+        return _Layout(self)
 
     row = box = column
 
+    def greyed(self):
+        return not self.active or (self.parent is not None and self.parent.greyed())
+
     def prop(self, _data, name, **_kw):
         self.props.append(name)
+        if self.greyed():
+            self.inactive.append(name)
 
     def label(self, text="", **_kw):
         self.labels.append(text)
