@@ -53,5 +53,6 @@ __all__ = [
     "prefilter",
     "probe",
     "segmentation",
+    "sky_texture",
     "table",
 ]
