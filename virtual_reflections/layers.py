@@ -414,13 +414,17 @@ class SkyTexture:
     extension : extension.Extension
         The sky texels' samples of the pyramid, read without a fade.
     weight : (n,) float32 ndarray
-        Their solid angles in its order, summing to 1 (the log-average's weights).
+        Their weights in the log-average, in its order: solid angle times `fade`, summing to 1.
+    fade : (n,) float32 ndarray
+        The texture's weight w per texel (1 up to the plate's highest elevation, fading out
+        above it).
     contrast : float
         Params.sky_texture.
     """
 
     extension: Extension
     weight: np.ndarray
+    fade: np.ndarray
     contrast: float
     plate_level0 = False
 
@@ -433,8 +437,8 @@ class SkyTexture:
         out : (h w, 3) float32 ndarray
         """
         modulate(
-            self.extension, self.weight, self.contrast, frame.pyramid, frame.shapes,
-            frame.offsets, out,
+            self.extension, self.weight, self.fade, self.contrast, frame.pyramid,
+            frame.shapes, frame.offsets, out,
         )  # fmt: skip
 
     def without(self, drop: np.ndarray) -> SkyTexture | None:
@@ -452,9 +456,10 @@ class SkyTexture:
         rest = self.extension.without(drop)
         if rest is None:
             return None
-        weight = self.weight[keep] / self.weight[keep].sum()
-        weight.flags.writeable = False
-        return SkyTexture(rest, weight, self.contrast)
+        weight, fade = self.weight[keep] / self.weight[keep].sum(), self.fade[keep]
+        for array in (weight, fade):
+            array.flags.writeable = False
+        return SkyTexture(rest, weight, fade, self.contrast)
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,13 +7,17 @@ takes the plate's structure instead: its direction is folded into the plate's vi
 azimuth about the world's up reflected back and forth across the azimuths the plate shows at
 or above the horizon, so the skyline the photo shows continues around the camera, mirrored at
 each edge, without a seam; its elevation clamped to the plate's), read there from the mip
-pyramid at the texel's own angular size, and the prior is multiplied by exp(k (t - mean t)),
+pyramid at the texel's own angular size, and the prior is multiplied by exp(k w (t - mean t)),
 t the log-luminance of that sample (each channel clipped at 1: a sun counts as white), the
-mean weighted by solid angle and the difference clipped to +-SKY_TEXTURE_CLIP. The sky's
-log-average stays the prior's; k sets the contrast (1: the plate's own).
+difference clipped to +-SKY_TEXTURE_CLIP. The weight w is 1 up to the highest elevation the
+plate shows and falls to 0 over SKY_TEXTURE_FADE_DEG above it: the skyline goes round the
+camera as a band and the sky above it stays the prior's smooth colour (clamped, the plate's
+top row would converge on the zenith in stripes). The mean is weighted by solid angle times
+w, so the sky's log-average stays the prior's; k sets the contrast (1: the plate's own).
 
 `sky_texture` builds the layer's geometry once per table (an `Extension` of the sky texels,
-read without a fade, and their solid-angle weights); `modulate` applies it to a frame's map.
+read without a fade, their weights in the mean and their w); `modulate` applies it to a
+frame's map.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from .taps import put_rows, take_rows
 from .trilinear import gather_runs
 
 SKY_TEXTURE_CLIP = 1.0  # natural-log units: a texel at most e times brighter or darker
+SKY_TEXTURE_FADE_DEG = 10.0  # above the plate's highest elevation the texture fades out over this
 GRID = 33  # plate positions a side sampled for the azimuths the plate shows
 MIN_ABOVE = 0.05  # below this share of the plate above the horizon, its whole width counts
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -56,9 +61,9 @@ def angles(directions, frame) -> tuple:
     return np.arcsin(np.clip(d @ u, -1.0, 1.0)), np.arctan2(d @ left, d @ f)
 
 
-def view_azimuths(width: int, height: int, intrinsics, frame) -> tuple:
-    """(lo, hi): the azimuths (radians) the plate shows at or above the world's horizon (its
-    whole width when under MIN_ABOVE of it is above)."""
+def view_extent(width: int, height: int, intrinsics, frame) -> tuple:
+    """(lo, hi, top): the azimuths (radians) the plate shows at or above the world's horizon
+    (its whole width when under MIN_ABOVE of it is above), and the highest elevation it shows."""
     fx, fy, cx, cy = intrinsics
     px, py = np.meshgrid(np.linspace(0, width, GRID), np.linspace(0, height, GRID))
     rays = np.stack([(cx - px) / fx, (cy - py) / fy, np.ones_like(px)], -1).reshape(-1, 3)
@@ -66,7 +71,7 @@ def view_azimuths(width: int, height: int, intrinsics, frame) -> tuple:
     above = elevation >= 0.0
     if above.mean() < MIN_ABOVE:
         above[:] = True
-    return float(azimuth[above].min()), float(azimuth[above].max())
+    return float(azimuth[above].min()), float(azimuth[above].max()), float(elevation.max())
 
 
 def fold(azimuth, lo: float, hi: float):
@@ -76,16 +81,21 @@ def fold(azimuth, lo: float, hi: float):
     return lo + np.where(t > width, 2.0 * width - t, t)
 
 
-def folded(directions, width: int, height: int, intrinsics, up) -> np.ndarray:
+def folded(directions, width: int, height: int, intrinsics, up) -> tuple:
     """Camera-frame `directions` (n, 3) with their azimuth folded into the plate's view
-    (`view_azimuths`, `fold`), their elevation kept: (n, 3) float32."""
+    (`view_extent`, `fold`), their elevation kept: ((n, 3) float32, (n,) float32 w, the
+    texture's weight: 1 up to the plate's highest elevation, 0 from SKY_TEXTURE_FADE_DEG
+    above it)."""
     frame = horizon_frame(up)
     u, f, left = frame
     elevation, azimuth = angles(directions, frame)
-    azimuth = fold(azimuth, *view_azimuths(width, height, intrinsics, frame))
+    lo, hi, top = view_extent(width, height, intrinsics, frame)
+    azimuth = fold(azimuth, lo, hi)
     ground = np.cos(elevation)[:, None]
     out = ground * (np.cos(azimuth)[:, None] * f + np.sin(azimuth)[:, None] * left)
-    return (out + np.sin(elevation)[:, None] * u).astype(np.float32)
+    out += np.sin(elevation)[:, None] * u
+    fade = np.clip(1.0 - (elevation - top) / math.radians(SKY_TEXTURE_FADE_DEG), 0.0, 1.0)
+    return out.astype(np.float32), fade.astype(np.float32)
 
 
 def solid_angles(layout: str, size: int, texels) -> np.ndarray:
@@ -106,23 +116,29 @@ def sky_lod(layout: str, size: int, intrinsics, top: int) -> float:
 
 def sky_texture(texels, directions, width, height, intrinsics, up, lod, top, layout, size):
     """The layer's geometry for the sky `texels` (n,) with camera-frame `directions` (n, 3),
-    read at mip level `lod` (`sky_lod`; the pyramid's last level `top`): (their `Extension`,
-    solid-angle weights (n,) float32 in its order, summing to 1), or None."""
+    read at mip level `lod` (`sky_lod`; the pyramid's last level `top`): (the `Extension` of
+    those the texture reaches (w > 0), their weights in the log-average (solid angle times w,
+    summing to 1) and their w, (m,) float32 each in its order), or None."""
     texels = np.asarray(texels, np.int64)
-    if texels.size == 0:
+    turned, fade = folded(directions, width, height, intrinsics, up)
+    reached = fade > 0.0
+    if not reached.any():
         return None
-    turned = folded(directions, width, height, intrinsics, up)
+    texels, turned = texels[reached], turned[reached]
     position, _ = clamp_to_view(turned, width, height, intrinsics)
     lod = np.full(texels.size, lod, np.float32)
     ext = extension(texels, position[:, 0], position[:, 1], lod, top)
-    weight = solid_angles(layout, size, ext.texels)
+    order = np.argsort(texels)[np.searchsorted(np.sort(texels), ext.texels)]
+    fade = fade[reached][order]
+    weight = solid_angles(layout, size, ext.texels) * fade
     weight = (weight / weight.sum()).astype(np.float32)
-    weight.flags.writeable = False
-    return ext, weight
+    for array in (weight, fade):
+        array.flags.writeable = False
+    return ext, weight, fade
 
 
-def modulate(ext: Extension, weight, contrast: float, source, shapes, offsets, out) -> None:
-    """out[texels] (the prior written there) times exp(contrast (t - mean t)), t the
+def modulate(ext: Extension, weight, fade, contrast: float, source, shapes, offsets, out) -> None:
+    """out[texels] (the prior written there) times exp(contrast w (t - mean t)), t the
     log-luminance of each texel's sample of the pyramid `source` (module docstring)."""
     values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
     rows = np.concatenate(
@@ -130,6 +146,7 @@ def modulate(ext: Extension, weight, contrast: float, source, shapes, offsets, o
     )
     t = np.log(np.maximum(np.minimum(rows, 1.0) @ LUMA, 1e-3))
     t -= float(weight @ t)
+    t *= fade
     np.clip(t, -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP, out=t)
     factor = np.exp(np.float32(contrast) * t).astype(np.float32)
     prior = take_rows(out, ext.texels)

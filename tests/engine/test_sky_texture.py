@@ -12,7 +12,13 @@ from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.layers import SkyTexture
 from virtual_reflections.layouts import texel_directions
-from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP, fold, folded, solid_angles
+from virtual_reflections.sky_texture import (
+    SKY_TEXTURE_CLIP,
+    SKY_TEXTURE_FADE_DEG,
+    fold,
+    folded,
+    solid_angles,
+)
 
 W, H = 160, 90
 F = 0.5 * W / math.tan(math.radians(30))  # 60 degrees across
@@ -49,10 +55,15 @@ def test_off_by_default_and_only_the_unseen_sky_changes(layout, size):
     textured, table = env(plate, 0.5, layout, size)
     assert any(isinstance(layer, SkyTexture) for layer in table.layers)
     d = texel_directions(layout, size).reshape(flat.shape)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)  # a cube's are not unit
     below = d[..., 1] < 0.0
     np.testing.assert_array_equal(textured[below], flat[below])
     changed = (textured != flat).any(-1)
-    assert changed.mean() > 0.3  # most of the sky above the horizon
+    elevation = np.degrees(np.arcsin(np.clip(d[..., 1], -1, 1)))
+    band = (elevation > 3) & (elevation < 15)  # the skyline's band, all round
+    assert changed[band].mean() > 0.75  # all but the plate's own view (60 of 360 degrees)
+    top = math.degrees(math.atan(H / 2 / F))  # the plate's highest elevation (18 degrees)
+    assert not changed[elevation > top + SKY_TEXTURE_FADE_DEG + 1].any()  # the sky above: flat
     if layout == "latlong":  # (a cube's output faces are in the map's frame, not these)
         ahead = d[..., 2] > math.cos(math.radians(10))  # inside the plate's view
         np.testing.assert_array_equal(textured[ahead], flat[ahead])
@@ -63,15 +74,18 @@ def test_the_log_average_is_the_priors_and_the_contrast_grows_with_the_share(lay
     plate = plate_with_skyline()
     flat, _ = env(plate, 0.0, layout, size)
     d = texel_directions(layout, size).reshape(flat.shape)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)  # a cube's are not unit
     ids = np.arange(d.shape[0] * d.shape[1])
     weight = solid_angles(layout, size, ids).reshape(flat.shape[:2])
     sky = d[..., 1] > 0.0
     sky &= (d[..., 2] < math.cos(math.radians(40))) if layout == "latlong" else True
+    fade = np.clip(1 - (np.degrees(np.arcsin(np.clip(d[..., 1], -1, 1))) - math.degrees(
+        math.atan(H / 2 / F))) / SKY_TEXTURE_FADE_DEG, 0, 1)  # fmt: skip
     spread = {}
     for k in (0.25, 0.5, 1.0):
         textured, _ = env(plate, k, layout, size)
         ratio = np.log((textured[sky] @ LUMA) / (flat[sky] @ LUMA))
-        w = weight[sky] / weight[sky].sum()
+        w = (weight * fade)[sky] / (weight * fade)[sky].sum()
         assert abs(float(w @ ratio)) < 0.03, k  # the sky's log-average: the prior's
         assert np.abs(ratio).max() <= k * SKY_TEXTURE_CLIP + 1e-4
         spread[k] = ratio.std()
@@ -110,7 +124,7 @@ def test_folded_directions_keep_their_elevation_and_land_in_the_view():
     d = rng.normal(size=(500, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     up = np.array([0.0, math.cos(0.2), -math.sin(0.2)])  # pitched down a little
-    out = folded(d, W, H, INTRINSICS, up)
+    out, fade = folded(d, W, H, INTRINSICS, up)
     np.testing.assert_allclose(out @ up, d @ up, atol=1e-5)
     np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-5)
     half = math.atan(W / 2 / F) + 0.02
