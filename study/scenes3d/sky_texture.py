@@ -7,8 +7,9 @@ horizon, its azimuth reflected back and forth across the plate's azimuths (so th
 plate shows continues around the camera, mirrored at each edge, without a seam). The plate
 pixel nearest that direction lends its log-luminance (display: each pixel clipped at 1); the
 sky's pixels are Auto's colour (`heldout_sky.plate_sky`) times exp(k (t - mean t)), the
-difference clipped at the engine's SKY_TEXTURE_CLIP: their log-average stays the estimate's, k
-sets the contrast (0: Auto's flat sky; 1: the plate's own). The engine's `Params.sky_texture`
+difference clipped at the engine's SKY_TEXTURE_CLIP and faded out over SKY_TEXTURE_FADE_DEG
+above the plate's highest elevation (w): their log-average stays the estimate's, k sets the
+contrast (0: Auto's flat sky; 1: the plate's own). The engine's `Params.sky_texture`
 (virtual_reflections/sky_texture.py) does the same on the map.
 
 Scored from `heldout_sky render`'s renders (the prior's part is linear in its colour, per
@@ -27,7 +28,7 @@ import numpy as np
 
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
-from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP
+from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP, SKY_TEXTURE_FADE_DEG
 
 from ..evaluate.metrics import psnr, ssim, to_display
 from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
@@ -84,19 +85,24 @@ def attach(out, d) -> None:
     white = read_rgba(str(folder / "white mirror.exr"))[y0:y1, x0:x1, :3].astype(np.float64)
     mirror = unit(coded / np.maximum(white, 1e-4))
     mirror[..., 2] = np.abs(mirror[..., 2])  # the prior's blur below the horizon: its mirror
-    d["texture"] = plate_texture(plate8, plate_dirs, mirror[d["sky"]])
+    sky = mirror[d["sky"]]
+    d["texture"] = plate_texture(plate8, plate_dirs, sky)
+    top = float(np.arcsin(np.clip(plate_dirs[..., 2], -1, 1)).max())  # the plate's highest
+    above = np.arcsin(np.clip(sky[:, 2], -1, 1)) - top
+    d["fade"] = np.clip(1.0 - above / np.radians(SKY_TEXTURE_FADE_DEG), 0.0, 1.0)
 
 
 def textured(d, gain, tint, k):
     """The scene's mirror (linear crop) with Auto's sky from the plate (`plate_sky`'s gain and
     tint) given the plate's texture at contrast ``k``, its log-average kept (the difference
-    clipped at SKY_TEXTURE_CLIP)."""
+    clipped at SKY_TEXTURE_CLIP and weighted by d["fade"], w, when given)."""
     hue = d["plate_mean"] / max(hs.lum(d["plate_mean"]), 1e-6)
     target = gain * hs.lum(d["plate_mean"]) * ((1 - tint) + tint * hue)
     colour = np.broadcast_to(target, d["part"].shape).copy()
-    t = d["texture"]
-    if k and t.size:
-        spread = np.clip(t - t.mean(), -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP)
+    t, w = d["texture"], d.get("fade", np.ones(d["texture"].shape))
+    if k and t.size and w.sum() > 0:
+        spread = w * (t - (w @ t) / w.sum())
+        spread = np.clip(spread, -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP)
         colour[d["sky"]] = target * np.exp(k * spread)[:, None]
     return d["dark"] + colour / d["today"] * d["part"]
 
