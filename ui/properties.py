@@ -24,7 +24,7 @@ from ..operators.scene.choices import (
     RESOLUTION_ITEMS,
     SURROUNDINGS_ITEMS,
 )
-from ..virtual_reflections.methods import MAX_TRIANGLES
+from ..virtual_reflections.methods import MAX_TRIANGLES, SKY_TEXTURE
 from ..virtual_reflections.params import MAX_SKY_GAIN, SKY_GAINS
 
 
@@ -123,14 +123,15 @@ class VR_SceneSettings(bpy.types.PropertyGroup):
     sky_texture: FloatProperty(
         update=_shaping_changed,
         name="Sky Texture",
-        default=0.0,
+        default=SKY_TEXTURE,
         min=0.0,
         max=1.0,
         subtype="FACTOR",
         description="How much of the photo's own texture the unseen sky in the reflection "
-        "takes (Camera View + Ground; 0: a flat colour estimated from the photo): the skyline "
-        "the photo shows continues around the camera, its average brightness still the one "
-        "the Surroundings set (World HDRI: the HDRI is that sky)",
+        "takes (Camera View + Ground; 1: the photo's own contrast; 0: a flat colour estimated "
+        "from the photo): the skyline the photo shows continues around the camera as a band, "
+        "its average brightness still the one the Surroundings set, the sky above it smooth "
+        "(World HDRI: the HDRI is that sky)",
     )
     front: EnumProperty(
         name="Front Face",

@@ -16,7 +16,7 @@ import numpy as np
 from .backends import backend
 from .colour import clean_plate
 from .fill import FILL_BINS, prior_level
-from .layers import Frame, scratch
+from .layers import Frame, SkyTexture, scratch
 from .mipmap import build_pyramid, level_offsets, level_shapes, level_view, pyramid_size
 from .params import Params
 from .table import LookupTable, lookup_table
@@ -100,7 +100,9 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
 
     The prior is the fill above the world's horizon, every direction there the plate does not
     show. The map is linear in the prior, so (map with a neutral prior of level 1 - map with it
-    black) / that level is each texel's weight (probe.py puts an HDRI in its place).
+    black) / that level is each texel's weight (probe.py puts an HDRI in its place). The
+    plate's texture on the prior (`Params.sky_texture`) is left out: an HDRI in its place
+    brings its own.
 
     Parameters
     ----------
@@ -121,6 +123,8 @@ def prior_parts(table: LookupTable, plate: np.ndarray, pyramids: dict | None = N
     if fill is None or fill.sky is None or not (fill.sky < 1).any():
         return None
     store = {} if pyramids is None else pyramids  # both gathers share one pyramid
+    layers = tuple(layer for layer in table.layers if not isinstance(layer, SkyTexture))
+    table = dataclasses.replace(table, layers=layers)
     neutral = (1.0, 1.0, 1.0)  # the weight is the share of a neutral prior of level 1
     without, lit = (
         apply_table(

@@ -112,6 +112,14 @@ SKY_GAINS = {"auto": 1.6, "open": 3.6, "enclosed": 0.7}
 # stays within 1 dB of that flat world): `python -m study.scenes3d.heldout_sky fit OUT --auto`.
 AUTO_SKY_GAIN = 1.4
 AUTO_SKY_TINT = 0.75
+# The unseen sky takes the photo's own texture (Params.sky_texture, the panel's Sky Texture;
+# sky_texture.py): SKY_TEXTURE of the plate's log-contrast, in a band that fades out
+# sky_texture.SKY_TEXTURE_FADE_DEG above the plate's highest elevation. Both chosen
+# leave-one-HDRI-out on the same 50 scenes, rendered by Generate: on the other HDRIs' scenes,
+# of the settings that meet issue 41's bars (worst scene within 1 dB of the plate-mean world,
+# mean +1.0 dB, 75 % ahead, SSIM +0.10, FLIP 0.48), the one with the most upper-half detail:
+# `python -m study.scenes3d.sky_texture_addon render OUT`, then `score OUT`.
+SKY_TEXTURE = 1.0
 # A rough surface's map (the Mix look's pre-filtered map, the World look's light) takes the
 # ground band's brighter sky, ROUGH_SKY_RATIOS' (fitted with it): Auto blends from the plate's
 # colour at roughness 0 to that sky at AUTO_SKY_ROUGHNESS, the first rough knot, and beyond.

@@ -21,6 +21,7 @@ from .methods import (
     METHOD_ALIASES,
     METHOD_NAMES,
     SKY_GAINS,
+    SKY_TEXTURE,
     reads_ground,
     uses_camera,
 )
@@ -289,10 +290,12 @@ class World:
         How far the prior's hue goes from grey to the plate's mean hue, 0..1.
     sky_texture : float
         With `up`: how much of the plate's own texture the unseen sky takes, 0..1 (0: the
-        prior's flat colour). Each sky texel is the prior times exp(k (t - mean t)), t the
-        log-luminance of the plate at the texel's direction folded into the plate's view,
-        clipped to +-SKY_TEXTURE_CLIP about its mean (sky_texture.py): the skyline the photo
-        shows continues around the camera, its log-average the prior's.
+        prior's flat colour; default methods.SKY_TEXTURE). Each sky texel is the prior times
+        exp(k w (t - mean t)), t the log-luminance of the plate at the texel's direction
+        folded into the plate's view, clipped to +-SKY_TEXTURE_CLIP about its mean, w fading
+        from 1 at the plate's highest elevation to 0 SKY_TEXTURE_FADE_DEG above it
+        (sky_texture.py): the skyline the photo shows continues around the camera as a band,
+        its log-average the prior's.
     """
 
     up: tuple | None = None
@@ -300,7 +303,7 @@ class World:
     sky_tint: tuple = (1.0, 1.0, 1.0)
     sky_from_plate: float = 1.0
     sky_tint_share: float = AUTO_SKY_TINT
-    sky_texture: float = 0.0
+    sky_texture: float = SKY_TEXTURE
 
     def __post_init__(self):
         if not (math.isfinite(self.sky_gain) and 0.0 <= self.sky_gain <= MAX_SKY_GAIN):

@@ -270,7 +270,7 @@ def _run_inputs(scene, options, objects, size, use_passes):
         reflections["sky_brightness"] = settings.sky_brightness
         reflections["sky_tint"] = [round(v, 6) for v in settings.sky_tint]
     texture = pipeline.scene_sky_texture(settings)
-    if texture > 0:  # off (the default) it leaves the records as they were
+    if texture > 0:  # off, the records are those made before it (a flat sky)
         reflections["sky_texture"] = texture
     reflections = {k: round(v, 6) if isinstance(v, float) else v for k, v in reflections.items()}
     reflections["ground_object"] = ground.name if ground is not None else None

@@ -213,10 +213,10 @@ def test_the_batch_option_sets_the_sky_brightness(addon):
 
 
 def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
-    """Sky Texture (0..1, default 0: the flat sky prior) is the Params.sky_texture of every
-    map Generate builds, under each Surroundings kind that uses the prior and for a rough
-    surface's map as for a mirror's, rounded so that a slider's float noise builds no new
-    table; the panel shows it beside the Surroundings."""
+    """Sky Texture (0..1, default methods.SKY_TEXTURE; 0: the flat sky prior) is the
+    Params.sky_texture of every map Generate builds, under each Surroundings kind that uses
+    the prior and for a rough surface's map as for a mirror's, rounded so that a slider's
+    float noise builds no new table; the panel shows it beside the Surroundings."""
     pipeline = addon_part("operators.pipeline")
     scene, ball = make_shot()
     settings = scene.virtual_reflections
@@ -235,8 +235,8 @@ def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
         assert built and all(p.method == "ground" for p in built), built
         return {p.world.sky_texture for p in built}
 
-    assert settings.sky_texture == 0.0
-    assert textures() == {0.0}
+    assert settings.sky_texture == 1.0  # methods.SKY_TEXTURE
+    assert textures() == {1.0}
     settings.sky_texture = 0.5
     for kind in ("AUTO", "OPEN", "ENCLOSED", "CUSTOM"):
         settings.surroundings = kind

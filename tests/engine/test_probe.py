@@ -49,7 +49,7 @@ def test_the_probe_is_read_in_blenders_layout():
     assert got[3].sum() == 0
 
 
-def ground_band_params(pitch):
+def ground_band_params(pitch, texture=0.0):
     """Camera View with the world's horizon and the ground band's neutral prior at 1.6 (the
     prior these tests split; Auto's from the plate is split alike)."""
     return Params(
@@ -59,6 +59,7 @@ def ground_band_params(pitch):
         sky_gain=1.6,
         sky_from_plate=0.0,
         sky_tint_share=0.0,
+        sky_texture=texture,
     )
 
 
@@ -80,6 +81,23 @@ def test_the_map_splits_exactly_at_the_prior():
     np.testing.assert_allclose(without + weight[..., None] * implied, env, atol=2e-5)
     ahead = d[..., 2] > math.cos(math.radians(3))
     assert weight[ahead].max() < 1e-4  # what the plate shows owes nothing to the prior
+
+
+def test_the_split_leaves_the_plates_texture_on_the_sky_out():
+    """With Sky Texture on, the prior's parts are those of the flat prior: an HDRI put in its
+    place (probe.py) brings its own structure, not the plate's on top."""
+    rng = np.random.default_rng(6)
+    plate = (0.1 + 0.3 * rng.random((H, W, 3))).astype(np.float32)
+    flat, textured = ground_band_params(30), ground_band_params(30, texture=1.0)
+    parts = [
+        prior_parts(lookup_table(W, H, (60, 30, 100, 60), p, "latlong", 256), plate)
+        for p in (flat, textured)
+    ]
+    for a, b in zip(*parts):
+        np.testing.assert_array_equal(a, b)
+    env = apply_table(lookup_table(W, H, (60, 30, 100, 60), textured, "latlong", 256), plate)
+    assert not np.allclose(env, apply_table(lookup_table(W, H, (60, 30, 100, 60), flat,
+                                                         "latlong", 256), plate))  # fmt: skip
 
 
 def test_no_prior_without_a_horizon():

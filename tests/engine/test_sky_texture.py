@@ -1,7 +1,8 @@
-"""The unseen sky given the plate's own texture (`Params.sky_texture`, sky_texture.py): off by
-default, the prior's log-average kept, the contrast in proportion to the share, the skyline
-continued around the camera mirrored at the plate's edges, a sun clipped, the ground and the
-plate's own view untouched, every gather back end alike."""
+"""The unseen sky given the plate's own texture (`Params.sky_texture`, sky_texture.py): on by
+default (methods.SKY_TEXTURE), none at 0, the prior's log-average kept, the contrast in
+proportion to the share, the skyline continued around the camera mirrored at the plate's
+edges in a band that fades out above the plate, a sun clipped, the ground and the plate's own
+view untouched, every gather back end alike."""
 
 import math
 
@@ -12,6 +13,7 @@ from virtual_reflections import Params, lookup_table
 from virtual_reflections.envmap import apply_table
 from virtual_reflections.layers import SkyTexture
 from virtual_reflections.layouts import texel_directions
+from virtual_reflections.methods import SKY_TEXTURE
 from virtual_reflections.sky_texture import (
     SKY_TEXTURE_CLIP,
     SKY_TEXTURE_FADE_DEG,
@@ -45,13 +47,14 @@ def env(plate, k, layout="latlong", size=256, method="camera"):
 
 
 @pytest.mark.parametrize("layout, size", [("latlong", 256), ("cube", 64)])
-def test_off_by_default_and_only_the_unseen_sky_changes(layout, size):
+def test_on_by_default_off_at_0_and_only_the_unseen_sky_changes(layout, size):
     plate = plate_with_skyline()
     flat, table = env(plate, 0.0, layout, size)
     assert not any(isinstance(layer, SkyTexture) for layer in table.layers)
     default = apply_table(lookup_table(W, H, BOX, Params(method="camera", intrinsics=INTRINSICS,
                                                          up=UP), layout, size), plate)  # fmt: skip
-    np.testing.assert_array_equal(flat, default)
+    np.testing.assert_array_equal(default, env(plate, SKY_TEXTURE, layout, size)[0])
+    assert not np.allclose(default, flat)
     textured, table = env(plate, 0.5, layout, size)
     assert any(isinstance(layer, SkyTexture) for layer in table.layers)
     d = texel_directions(layout, size).reshape(flat.shape)
