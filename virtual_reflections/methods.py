@@ -119,7 +119,7 @@ AUTO_SKY_TINT = 0.75
 # of the settings that meet issue 41's bars (worst scene within 1 dB of the plate-mean world,
 # mean +1.0 dB, 75 % ahead, SSIM +0.10, FLIP 0.48), the one with the most upper-half detail:
 # `python -m study.scenes3d.sky_texture_addon render OUT`, then `score OUT`.
-SKY_TEXTURE = 1.0
+SKY_TEXTURE = 0.75
 # A rough surface's map (the Mix look's pre-filtered map, the World look's light) takes the
 # ground band's brighter sky, ROUGH_SKY_RATIOS' (fitted with it): Auto blends from the plate's
 # colour at roughness 0 to that sky at AUTO_SKY_ROUGHNESS, the first rough knot, and beyond.

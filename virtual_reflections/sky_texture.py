@@ -33,7 +33,7 @@ from .taps import put_rows, take_rows
 from .trilinear import gather_runs
 
 SKY_TEXTURE_CLIP = 1.0  # natural-log units: a texel at most e times brighter or darker
-SKY_TEXTURE_FADE_DEG = 20.0  # above the plate's highest elevation the texture fades out over this
+SKY_TEXTURE_FADE_DEG = 30.0  # above the plate's highest elevation the texture fades out over this
 GRID = 33  # plate positions a side sampled for the azimuths the plate shows
 MIN_ABOVE = 0.05  # below this share of the plate above the horizon, its whole width counts
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)

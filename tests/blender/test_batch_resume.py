@@ -87,7 +87,7 @@ def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
     record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
     assert record["inputs"]["reflections"]["surroundings"] == "CUSTOM"
     assert record["inputs"]["reflections"]["sky_brightness"] == 2.5
-    # The Sky Texture: rendered again at another share; recorded when on (the default, 1), and
+    # The Sky Texture: rendered again at another share; recorded when on (the default, 0.75), and
     # off (0) the records are those made before it had one (a flat sky).
     textured = run(*common, "--plate", plate_b, "--combine", "MIX", "--sky-texture", 0.5)
     assert textured.returncode == 0, textured.stderr[-2000:]
@@ -98,7 +98,7 @@ def test_other_inputs_render_again_same_inputs_skip(shot, tmp_path):
     assert named.returncode == 0, named.stderr[-2000:]
     record = json.loads((out / ".shot.0001.exr.vr.json").read_text())
     assert "sky_brightness" not in record["inputs"]["reflections"]
-    assert record["inputs"]["reflections"]["sky_texture"] == 1.0  # the default
+    assert record["inputs"]["reflections"]["sky_texture"] == 0.75  # the default
     flat = run(*common, "--plate", plate_b, "--combine", "MIX", "--surroundings", "auto",
                "--sky-texture", 0)  # fmt: skip
     assert flat.returncode == 0, flat.stderr[-2000:]

@@ -235,8 +235,8 @@ def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
         assert built and all(p.method == "ground" for p in built), built
         return {p.world.sky_texture for p in built}
 
-    assert settings.sky_texture == 1.0  # methods.SKY_TEXTURE
-    assert textures() == {1.0}
+    assert settings.sky_texture == 0.75  # methods.SKY_TEXTURE
+    assert textures() == {0.75}
     settings.sky_texture = 0.5
     for kind in ("AUTO", "OPEN", "ENCLOSED", "CUSTOM"):
         settings.surroundings = kind
