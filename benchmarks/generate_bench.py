@@ -104,7 +104,8 @@ def measure(generate, obj, repeat, method):
                 camera.lens = lens + 0.05 * (i + 1)
                 bpy.context.view_layer.update()
             if case == "moved":
-                obj.location.x = 0.01 * (i + 1) + (0.5 if method in ("ground", "world") else 0.0)
+                shift = 0.5 if method in ("ground", "world", "flat") else 0.0
+                obj.location.x = 0.01 * (i + 1) + shift
                 bpy.context.view_layer.update()
             t = time.perf_counter()
             report = generate.generate(
@@ -133,8 +134,9 @@ def main():
         "--method",
         nargs="+",
         default=["camera", "ground"],
-        choices=("camera", "ground", "paper", "world"),
-        help="world: Camera View + Ground with Surroundings World HDRI (a bundled HDRI)",
+        choices=("camera", "ground", "paper", "world", "flat"),
+        help="world: Camera View + Ground with Surroundings World HDRI (a bundled HDRI); flat: "
+        "Camera View + Ground with Sky Texture 0 (the flat unseen sky)",
     )
     parser.add_argument("--plate", default="1080p", choices=sorted(PLATES))
     parser.add_argument("--resolution", default="1024", help="1024, AUTO, ... (the panel's)")
@@ -151,10 +153,13 @@ def main():
         f"(resolution {args.resolution})"
     )
     first = None
+    texture = scene.virtual_reflections.sky_texture  # the add-on's default
     world_hdri(scene)
     for method in args.method:
-        scene.virtual_reflections.method = "GROUND" if method == "world" else method.upper()
-        scene.virtual_reflections.surroundings = "WORLD" if method == "world" else "AUTO"
+        settings = scene.virtual_reflections
+        settings.method = "GROUND" if method in ("world", "flat") else method.upper()
+        settings.surroundings = "WORLD" if method == "world" else "AUTO"
+        settings.sky_texture = 0.0 if method == "flat" else texture
         moved = measure(generate, obj, args.repeat, method)
         first = first or moved
         print(f"  {method}: moved pose {moved / first:.2f}x the {args.method[0]} method's")

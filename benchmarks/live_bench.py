@@ -32,16 +32,19 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from generate_bench import load_addon, scene_with_object, world_hdri  # noqa: E402
 
 
-def build_scene(generate, method="CAMERA", surroundings="AUTO"):
+def build_scene(generate, method="CAMERA", surroundings="AUTO", sky_texture=None):
     """generate_bench's shot (a 100k-vertex sphere, a 1080p plate, 1024-wide map) plus an
     unrelated cube, its map generated and Live Update on. Surroundings WORLD: with a world
-    HDRI (`world_hdri`) read in place of the guessed sky."""
+    HDRI (`world_hdri`) read in place of the guessed sky. ``sky_texture``: the panel's Sky
+    Texture (None: the add-on's default)."""
     scene, obj = scene_with_object()
     bpy.ops.mesh.primitive_cube_add(location=(4.0, 2.0, 0.0))
     other = bpy.context.active_object
     settings = scene.virtual_reflections
     settings.method = method
     settings.surroundings = surroundings
+    if sky_texture is not None:
+        settings.sky_texture = sky_texture
     if surroundings == "WORLD":
         world_hdri(scene)
     settings.combine = "REPLACE"
@@ -83,17 +86,19 @@ def main():
     parser.add_argument("--steps", type=int, default=90)
     parser.add_argument("--method", choices=("GROUND", "CAMERA", "PAPER"), default="GROUND")
     parser.add_argument("--surroundings", choices=("AUTO", "WORLD"), default="AUTO")
+    parser.add_argument("--sky-texture", type=float, help="the panel's (default: the add-on's)")
     args = parser.parse_args()
     addon = load_addon()
     try:
         generate = sys.modules[addon.__name__ + ".operators.generate"]
         live = sys.modules[addon.__name__ + ".operators.live"]
-        scene, obj, other = build_scene(generate, args.method, args.surroundings)
+        scene, obj, other = build_scene(generate, args.method, args.surroundings, args.sky_texture)
         print(
             f"Blender {bpy.app.version_string}, Python {platform.python_version()}, "
             f"NumPy {np.__version__}, {os.cpu_count()} cores; sphere {len(obj.data.vertices)} "
             f"vertices; plate 1920x1080 8-bit; map 1024x512, moving {live.MOVING_WIDTH}x"
-            f"{live.MOVING_WIDTH // 2}; method {args.method}, surroundings {args.surroundings}"
+            f"{live.MOVING_WIDTH // 2}; method {args.method}, surroundings {args.surroundings}, "
+            f"sky texture {scene.virtual_reflections.sky_texture:g}"
         )
         drag(live, obj, 10, full=False, start=1000)  # warm up: reduced plate, pyramids, caches
         times, reports = drag(live, obj, args.steps, full=False)

