@@ -22,7 +22,7 @@ from ..virtual_reflections import Params, lookup_table, methods
 from ..virtual_reflections.envmap import apply_table, prior_parts
 from ..virtual_reflections.fill import sky_in_view
 from ..virtual_reflections.ggx_lobe import dominant_shift
-from ..virtual_reflections.params import sky_prior_for
+from ..virtual_reflections.params import sky_prior_for, sky_texture_for
 from ..virtual_reflections.prefilter import SHARP, prefilter_latlong
 from ..virtual_reflections.probe import with_probe
 from .node_trees import shading, world_probe
@@ -311,8 +311,10 @@ def map_params(view, settings, depsgraph, objects, found, roughness) -> Params:
         return view.params
     floor, centre = found
     up = tuple(round(v, 4) for v in bounds.to_engine_frame(view.projection, vector=(0, 0, 1)))
-    # A rough surface sees a brighter sky (`sky_roughness`).
-    prior = scene_sky_prior(settings, sky_roughness(settings, objects, roughness))
+    # A rough surface sees a brighter sky (`sky_roughness`), without the plate's texture.
+    seen_by = sky_roughness(settings, objects, roughness)
+    prior = scene_sky_prior(settings, seen_by)
+    prior["sky_texture"] = sky_texture_for(scene_sky_texture(settings), seen_by)
     if per_point_ground(settings, roughness):
         return dataclasses.replace(view.params, up=up, **prior)
     origin = bounds.to_engine_frame(view.projection, point=centre)

@@ -109,6 +109,16 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
     }
 
 
+def sky_texture_for(share: float, roughness: float = 0.0) -> float:
+    """The plate's texture in the unseen sky (`World.sky_texture`) a surface of ``roughness``
+    sees: the artist's ``share`` for a mirror, falling linearly to 0 at AUTO_SKY_ROUGHNESS
+    (where Auto's sky, too, is the rough one's). A rough surface's lobe blurs a structure that
+    is not the truth's into error: with the texture at every roughness the rough rows of the
+    16-scene study lost 0.07-0.12 dB (docs/scenes3d.md)."""
+    r = _unit_roughness(roughness)
+    return round(float(share) * (1.0 - min(r / AUTO_SKY_ROUGHNESS, 1.0)), 4)
+
+
 @dataclass(frozen=True)
 class Regions:
     """The paper's cut of the plate (§3.2) and its front face (§3.1).

@@ -214,9 +214,10 @@ def test_the_batch_option_sets_the_sky_brightness(addon):
 
 def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
     """Sky Texture (0..1, default methods.SKY_TEXTURE; 0: the flat sky prior) is the
-    Params.sky_texture of every map Generate builds, under each Surroundings kind that uses
-    the prior and for a rough surface's map as for a mirror's, rounded so that a slider's
-    float noise builds no new table; the panel shows it beside the Surroundings."""
+    Params.sky_texture of every mirror map Generate builds, under each Surroundings kind that
+    uses the prior (a rough surface's map takes the share its roughness sees: none at 0.35),
+    rounded so that a slider's float noise builds no new table; the panel shows it beside
+    the Surroundings."""
     pipeline = addon_part("operators.pipeline")
     scene, ball = make_shot()
     settings = scene.virtual_reflections
@@ -244,8 +245,9 @@ def test_the_sky_texture_reaches_every_maps_params(addon, monkeypatch):
         drawn = draw_main_panel(scene)
         assert "sky_texture" in drawn.props and "sky_texture" not in drawn.inactive, kind
     ball.data.materials.append(rough_material("Rough", 0.35))
-    settings.combine = "MIX"  # a rough surface's map: its own, brighter prior, the same texture
-    assert textures() == {0.5}
+    settings.combine = "MIX"  # a rough surface's map: its own, brighter prior, and no texture
+    assert textures() == {0.0}  # (params.sky_texture_for: none from roughness 0.15 on)
+    settings.combine = "REPLACE"
     settings.sky_texture = 0.5 + 1e-7  # a slider's float noise
     assert settings.sky_texture != 0.5
     intrinsics = (100.0, 100.0, 80.0, 45.0)

@@ -163,3 +163,15 @@ def test_the_ground_method_keeps_the_texture():
 def test_a_share_outside_0_1_is_refused(k):
     with pytest.raises(ValueError, match="sky_texture"):
         Params(method="camera", sky_texture=k)
+
+
+def test_a_rough_surface_sees_less_of_the_texture():
+    """params.sky_texture_for: the artist's share for a mirror, falling linearly to none at
+    AUTO_SKY_ROUGHNESS, as Auto's sky turns to the rough one's."""
+    from virtual_reflections.params import AUTO_SKY_ROUGHNESS, sky_texture_for
+
+    assert sky_texture_for(0.75, 0.0) == 0.75
+    assert sky_texture_for(0.75, AUTO_SKY_ROUGHNESS / 2) == pytest.approx(0.375, abs=1e-4)
+    assert sky_texture_for(0.75, AUTO_SKY_ROUGHNESS) == 0.0
+    assert sky_texture_for(0.75, 0.35) == 0.0
+    assert sky_texture_for(0.0, 0.0) == 0.0
