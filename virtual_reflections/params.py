@@ -110,11 +110,25 @@ def sky_prior_for(kind: str, roughness: float = 0.0, custom: float | None = None
 
 
 def sky_texture_for(share: float, roughness: float = 0.0) -> float:
-    """The plate's texture in the unseen sky (`World.sky_texture`) a surface of ``roughness``
-    sees: the artist's ``share`` for a mirror, falling linearly to 0 at AUTO_SKY_ROUGHNESS
-    (where Auto's sky, too, is the rough one's). A rough surface's lobe blurs a structure that
-    is not the truth's into error: with the texture at every roughness the rough rows of the
-    16-scene study lost 0.07-0.12 dB (docs/scenes3d.md)."""
+    """The share of the plate's texture in the unseen sky a surface of some roughness sees.
+
+    The artist's share for a mirror, falling linearly to 0 at AUTO_SKY_ROUGHNESS (where
+    Auto's sky, too, is the rough one's): a rough surface's lobe blurs a structure that is
+    not the truth's into error (with the texture at every roughness the rough rows of the
+    16-scene study lost 0.07-0.12 dB; docs/scenes3d.md).
+
+    Parameters
+    ----------
+    share : float
+        The artist's Sky Texture, 0..1.
+    roughness : float, optional
+        As for `sky_gain_for`.
+
+    Returns
+    -------
+    float
+        `World.sky_texture`, rounded to 1e-4.
+    """
     r = _unit_roughness(roughness)
     return round(float(share) * (1.0 - min(r / AUTO_SKY_ROUGHNESS, 1.0)), 4)
 
