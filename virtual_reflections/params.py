@@ -115,7 +115,7 @@ def sky_texture_for(share: float, roughness: float = 0.0) -> float:
     The artist's share for a mirror, falling linearly to 0 at AUTO_SKY_ROUGHNESS (where
     Auto's sky, too, is the rough one's): a rough surface's lobe blurs a structure that is
     not the truth's into error (with the texture at every roughness the rough rows of the
-    16-scene study lost 0.07-0.12 dB; docs/scenes3d.md).
+    16-scene study lost 0.07-0.12 dB; docs/changelog.md, "The sky's texture").
 
     Parameters
     ----------

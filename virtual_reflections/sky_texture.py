@@ -26,19 +26,17 @@ import math
 
 import numpy as np
 
-from .backends import backend
 from .camera_view import clamp_to_view
 from .extension import Extension, extension
 from .extension import apply as apply_extension
+from .fill import REC709_LUMA
 from .layouts import directions_at
 from .taps import put_rows, take_rows
-from .trilinear import gather_runs
 
 SKY_TEXTURE_CLIP = 1.0  # natural-log units: a texel at most e times brighter or darker
 SKY_TEXTURE_FADE_DEG = 30.0  # above the plate's highest elevation the texture fades out over this
 GRID = 33  # plate positions a side sampled for the azimuths the plate shows
 MIN_ABOVE = 0.05  # below this share of the plate above the horizon, its whole width counts
-LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def horizon_frame(up) -> tuple:
@@ -77,7 +75,20 @@ def view_extent(width: int, height: int, intrinsics, frame) -> tuple:
 
 
 def fold(azimuth, lo: float, hi: float):
-    """`azimuth` reflected back and forth into [lo, hi] (a triangle wave of period 2 (hi - lo))."""
+    """Azimuths reflected back and forth into an interval (a triangle wave).
+
+    Parameters
+    ----------
+    azimuth : float or ndarray
+        Radians.
+    lo, hi : float
+        The interval; its period is 2 (hi - lo).
+
+    Returns
+    -------
+    ndarray
+        The folded azimuths, in [lo, hi]: inside it they are kept, past an end mirrored.
+    """
     width = max(hi - lo, 1e-6)
     t = np.mod(np.asarray(azimuth) - lo, 2.0 * width)
     return lo + np.where(t > width, 2.0 * width - t, t)
@@ -139,25 +150,14 @@ def sky_texture(texels, directions, width, height, intrinsics, up, lod, top, lay
     return ext, weight, fade
 
 
-def samples(ext: Extension, source, shapes, offsets, buffer) -> np.ndarray:
-    """(n, 3) float32: the texels' samples of the pyramid `source`, in `ext`'s order. With
-    Numba, its compiled extension pass writes them into `buffer` ((T, 3) float32, the map's
-    size: 6.5 times faster than NumPy's runs at 170k texels); else the runs as read."""
-    if backend() == "numba":
-        apply_extension(ext, source, shapes, offsets, buffer)
-        return take_rows(buffer, ext.texels)
-    values = gather_runs(ext.samples, source, shapes, offsets, counts=ext.counts)
-    return np.concatenate(
-        [values[start : start + n] for start, n in zip(ext.samples.starts, ext.counts)]
-    )
-
-
 def modulate(ext: Extension, weight, fade, contrast, source, shapes, offsets, out, buffer):
     """out[texels] (the prior written there) times exp(contrast w (t - mean t)), t the
-    log-luminance of each texel's sample of the pyramid `source` (module docstring);
-    `buffer`: `samples`'."""
-    rows = samples(ext, source, shapes, offsets, buffer)
-    t = np.log(np.maximum(np.minimum(rows, 1.0) @ LUMA, 1e-3))
+    log-luminance of each texel's sample of the pyramid `source` (module docstring). The
+    samples are the extension's own pass (its back end's: Numba's compiled one where it
+    imports), written into `buffer` ((T, 3) float32, the map's size) and read back."""
+    apply_extension(ext, source, shapes, offsets, buffer)
+    rows = take_rows(buffer, ext.texels)
+    t = np.log(np.maximum(np.minimum(rows, 1.0) @ REC709_LUMA, 1e-3))
     t -= float(weight @ t)
     t *= fade
     np.clip(t, -SKY_TEXTURE_CLIP, SKY_TEXTURE_CLIP, out=t)

@@ -278,10 +278,12 @@ def loho_floor(scores, groups, floor=SAFE_FLOOR):
     return held, chosen
 
 
-def pick_under_floor(scores, floor=SAFE_FLOOR) -> int:
-    """The column of ``scores`` (scenes x columns) with the best mean among those whose worst
-    scene is at least ``floor``; none: the one with the best worst scene."""
-    worst, mean = scores.min(0), scores.mean(0)
+def pick_under_floor(scores, floor=SAFE_FLOOR, objective=None) -> int:
+    """The column of ``scores`` (scenes x columns) with the best mean (of ``objective``, the
+    same shape, when given) among those whose worst scene is at least ``floor``; none: the
+    one with the best worst scene."""
+    worst = scores.min(0)
+    mean = (scores if objective is None else objective).mean(0)
     return int(np.argmax(np.where(worst >= floor, mean, mean.min() - 1e3 + worst)))
 
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from virtual_reflections.colour import srgb_to_linear
 from virtual_reflections.imagefiles import read_rgba
-from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP, SKY_TEXTURE_FADE_DEG
+from virtual_reflections.sky_texture import SKY_TEXTURE_CLIP, SKY_TEXTURE_FADE_DEG, fold
 
 from ..evaluate.metrics import psnr, ssim, to_display
 from ..evaluate.perceptual import detail_ratio, flip_ldr, upper_half
@@ -43,13 +43,6 @@ def angles(dirs: np.ndarray) -> np.ndarray:
     return np.stack(
         [np.arcsin(np.clip(dirs[..., 2], -1, 1)), np.arctan2(dirs[..., 1], dirs[..., 0])], -1
     )
-
-
-def fold(azimuth, lo, hi):
-    """Azimuths reflected back and forth into [lo, hi] (a triangle wave, period 2 (hi - lo))."""
-    width = max(hi - lo, 1e-6)
-    t = np.mod(azimuth - lo, 2 * width)
-    return lo + np.where(t > width, 2 * width - t, t)
 
 
 def plate_texture(plate8, plate_dirs, sky_dirs) -> np.ndarray:
@@ -156,9 +149,7 @@ def held_out_picks(scores, objective, groups) -> np.ndarray:
     chosen = np.empty(len(scores), int)
     for group in np.unique(groups):
         train = groups != group
-        worst = scores[train].min(0)
-        mean = objective[train].mean(0)
-        chosen[~train] = int(np.argmax(np.where(worst >= hs.SAFE_FLOOR, mean, -1e9 + worst)))
+        chosen[~train] = hs.pick_under_floor(scores[train], objective=objective[train])
     return chosen
 
 
